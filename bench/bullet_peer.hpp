@@ -1,0 +1,99 @@
+// The benchmark's peer: Bullet 3.24's implicit deformable solver
+// (btDeformableMultiBodyDynamicsWorld + btDeformableMassSpringForce, double
+// precision) given the same nodes, masses, pins, springs, gravity and damping
+// as a cloth_sim Model. No collisions, no ground. Built only when CMake finds
+// Bullet's float64 package (CLOTH_SIM_HAVE_BULLET); see bench/README.md for
+// how each parameter maps and where Bullet's model differs from ours.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "cloth_sim/model.hpp"
+#include "cloth_sim/types.hpp"
+
+namespace cloth_sim {
+namespace bench {
+
+/// Bullet's solver knobs. Defaults are Bullet 3.24's own, except where noted.
+struct BulletSettings {
+  double dt = 1.0 / 240.0;  ///< s; each step() is exactly one internal Bullet step
+
+  /// btDeformableBodySolver::m_maxNewtonIterations (Bullet 3.24 default: 1).
+  /// One iteration is one linear solve about (x_n + h v_n, v_n).
+  int newton_iterations = 1;
+  /// btDeformableBodySolver::m_newtonTolerance (default 1e-4): Newton stops
+  /// once ||h f - M dv||_2 < this (absolute, N*s), checked from the 2nd iteration.
+  double newton_tolerance = 1e-4;
+
+  /// btConjugateGradient::m_maxIterations (Bullet default 300).
+  int cg_max_iterations = 300;
+  /// btConjugateGradient::m_tolerance (Bullet default SIMD_EPSILON = 2.2e-16).
+  /// CG stops when r.z < cg_tolerance * min(1, b.z0): a bound on the SQUARED
+  /// residual, relative only while |b| < 1 (with 3.24's unset, i.e. identity,
+  /// preconditioner).
+  double cg_tolerance = 2.220446049250313e-16;
+
+  /// btDeformableBodySolver::setLineSearch (Bullet default false).
+  bool line_search = false;
+
+  /// true: use btDeformableMassSpringForce itself. It has one elastic and one
+  /// damping coefficient for all links (plus a second elastic one for links
+  /// flagged bending), so it is accepted only when every spring group present
+  /// shares the damping and stretch and shear share the stiffness. false
+  /// (default): the same force with per-link coefficients (bullet_peer.cpp).
+  bool stock_force = false;
+};
+
+/// Work done inside Bullet, counted through the spring force's callbacks.
+struct BulletWork {
+  long steps = 0;
+  long force_evaluations = 0;  ///< addScaledForces calls (prediction + Newton)
+  long matrix_products = 0;    ///< system-matrix products (one per CG iteration + one per solve)
+  long newton_solves = 0;      ///< linear solves (exact without line search)
+  long cg_iterations() const { return matrix_products - newton_solves; }
+};
+
+class BulletPeer {
+ public:
+  /// Builds the Bullet world. x0 (and v0 if not empty) are 3n vectors; pinned
+  /// nodes get zero inverse mass and stay where x0 puts them. Throws
+  /// std::invalid_argument naming the field for anything Bullet cannot
+  /// represent (air drag, bad sizes, stock_force with per-group coefficients,
+  /// non-positive dt or iteration counts).
+  BulletPeer(const Model& model, const VecX& x0, const std::vector<int>& pinned,
+             const BulletSettings& settings, const VecX& v0 = VecX());
+  ~BulletPeer();
+  BulletPeer(const BulletPeer&) = delete;
+  BulletPeer& operator=(const BulletPeer&) = delete;
+
+  /// Advances by settings().dt (one btDeformableMultiBodyDynamicsWorld step).
+  void step();
+
+  VecX positions() const;   ///< 3n
+  VecX velocities() const;  ///< 3n
+  double time() const { return time_; }
+  long stepCount() const { return steps_; }
+  int numNodes() const;
+  const BulletSettings& settings() const { return settings_; }
+  /// Counts since construction; only with the per-link force (else zeros).
+  BulletWork work() const;
+  /// Largest |rest length in Bullet - model rest length| (must stay 0: Bullet
+  /// resets rest lengths from positions if its "update constants" flag is set).
+  double restLengthDrift() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  BulletSettings settings_;
+  double time_ = 0.0;
+  long steps_ = 0;
+};
+
+/// Why the stock btDeformableMassSpringForce cannot carry this model's
+/// coefficients; empty if it can.
+std::string stockForceLimitation(const Model& model);
+
+}  // namespace bench
+}  // namespace cloth_sim

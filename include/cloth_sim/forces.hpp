@@ -1,0 +1,31 @@
+// Whole-cloth forces, energies and the implicit system assembly. Each loop
+// touches only the terms the model has (absent groups have no springs;
+// gravity and drag are skipped when zero).
+#pragma once
+
+#include "cloth_sim/linear_solver.hpp"
+#include "cloth_sim/model.hpp"
+#include "cloth_sim/spring_forces.hpp"
+
+namespace cloth_sim {
+
+/// Parameters of spring s under the model's current group settings.
+SpringParams springParams(const Model& model, const Spring& s);
+
+/// f = m g - c_air v + spring forces (3n).
+void computeForces(const Model& model, const VecX& x, const VecX& v, VecX& f);
+
+/// Fills A = M - a df/dv - b df/dx (pinned rows are handled by the solver),
+/// and in the same spring loop f(x, v) and, if w is given, df/dx * w.
+/// Also accumulates A's block diagonal for the preconditioner.
+void assembleSystem(const Model& model, const VecX& x, const VecX& v, double a, double b,
+                    bool project_compression, SystemMatrix& A, VecX& f,
+                    const VecX* w = nullptr, VecX* dfdx_w = nullptr);
+
+double kineticEnergy(const Model& model, const VecX& v);
+double elasticEnergy(const Model& model, const VecX& x);
+double gravityEnergy(const Model& model, const VecX& x);  ///< -sum m g.x
+/// Largest |d|/L - 1 over all springs (0 without springs).
+double maxStrain(const Model& model, const VecX& x);
+
+}  // namespace cloth_sim

@@ -1,0 +1,85 @@
+// The system matrix A = M - b h df/dv - b^2 h^2 df/dx of an implicit step,
+// stored per node (3x3 diagonal blocks) and per spring (one symmetric 3x3
+// coupling block S, entering as A_ii += S, A_jj += S, A_ij = A_ji = -S), so
+// the sparsity pattern is the spring list: fixed, refilled in place each step.
+// Pinned DOFs are eliminated: the solve runs on the free nodes only.
+#pragma once
+
+#include <Eigen/Sparse>
+#include <Eigen/SparseCholesky>
+#include <memory>
+#include <vector>
+
+#include "cloth_sim/model.hpp"
+#include "cloth_sim/types.hpp"
+
+namespace cloth_sim {
+
+class SystemMatrix {
+ public:
+  void resize(int num_nodes, int num_springs);
+  int numNodes() const { return static_cast<int>(diag_.size()); }
+  /// Sets the diagonal blocks to mass_i * I and zeroes the couplings.
+  void reset(const std::vector<double>& mass);
+  Mat3& diag(int node) { return diag_[node]; }
+  Mat3& coupling(int spring) { return coupling_[spring]; }
+  const Mat3& diag(int node) const { return diag_[node]; }
+  const Mat3& coupling(int spring) const { return coupling_[spring]; }
+
+  /// y = A x, restricted to free nodes (pinned rows and columns act as zero).
+  void multiply(const std::vector<Spring>& springs, const std::vector<char>& free,
+                const VecX& x, VecX& y) const;
+  /// Full diagonal block of node i including its springs' couplings.
+  /// Computed by accumulate(); valid until the next reset().
+  const Mat3& fullDiag(int node) const { return full_diag_[node]; }
+  void accumulateDiagonal(const std::vector<Spring>& springs);
+
+ private:
+  std::vector<Mat3> diag_;
+  std::vector<Mat3> coupling_;
+  std::vector<Mat3> full_diag_;
+};
+
+struct CgResult {
+  int iterations = 0;
+  double relative_residual = 0.0;  ///< ||b - A x|| / ||b||
+  bool converged = false;
+};
+
+/// The system matrix copied into a sparse matrix whose pattern is built once
+/// (nodes and springs never change), refilled in place and factorized.
+/// Pinned nodes become identity rows so the pattern stays the same.
+class CholeskyFactor {
+ public:
+  /// Refills the values and factorizes. Returns false if not positive definite.
+  bool factorize(const SystemMatrix& A, const std::vector<Spring>& springs,
+                 const std::vector<char>& free);
+  void solve(const VecX& r, VecX& z) const { z = ldlt_.solve(r); }
+
+ private:
+  void buildPattern(int num_nodes, const std::vector<Spring>& springs);
+  Eigen::SparseMatrix<double> matrix_;
+  std::vector<int> diag_index_;      ///< value index of entry (0,0) of each node block, per column
+  std::vector<int> coupling_index_;  ///< same for spring blocks (row j, column i)
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower> ldlt_;
+  int num_nodes_ = -1;
+  size_t num_springs_ = 0;
+};
+
+/// Reused buffers, so a solve allocates nothing once sized.
+struct CgWorkspace {
+  VecX r, z, p, q;
+  std::vector<Mat3> inv_diag;
+  std::shared_ptr<CholeskyFactor> cholesky;  ///< made on first use
+};
+
+/// Preconditioned conjugate gradient on the free DOFs. `x` is the warm start
+/// and the answer; pinned entries of x are set to zero. Stops when
+/// ||r|| <= tolerance * ||b|| (b restricted to free DOFs) or after
+/// max_iterations.
+CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& springs,
+                           const std::vector<char>& free, const VecX& b, VecX& x,
+                           Preconditioner preconditioner, double tolerance,
+                           int max_iterations, CgWorkspace& ws);
+
+}  // namespace cloth_sim

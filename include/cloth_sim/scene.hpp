@@ -1,0 +1,100 @@
+// A scene: everything that defines a simulation, parsed and validated from YAML.
+// One schema for the CLI and the ROS node. Units SI, z up (REP 103).
+#pragma once
+
+#include <map>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "cloth_sim/types.hpp"
+
+namespace cloth_sim {
+
+/// Thrown for any invalid scene; what() names the field, e.g.
+/// "springs.stretch.stiffness: must be > 0, got -3".
+class SceneError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct SpringGroupParams {
+  bool enabled = false;    ///< absent from the scene -> absent from the model
+  double stiffness = 0.0;  ///< N/m, > 0 when enabled
+  double damping = 0.0;    ///< N*s/m, >= 0
+};
+
+/// An action applied between steps at simulated time `time`.
+struct SceneEvent {
+  enum class Kind { SetStiffness, MovePin, Pin, Release };
+  double time = 0.0;
+  Kind kind = Kind::SetStiffness;
+  // set_stiffness
+  bool all_types = false;          ///< spring_type: all
+  SpringType spring_type = SpringType::Stretch;
+  double stiffness = 0.0;
+  double damping = -1.0;           ///< < 0 keeps the current damping
+  // move_pin
+  int index = -1;
+  std::optional<Vec3> position;    ///< jump the target here
+  std::optional<Vec3> velocity;    ///< drive the target at this velocity ...
+  double duration = 0.0;           ///< ... for this long (s)
+  // pin / release
+  std::vector<int> indices;
+  bool release_all = false;
+};
+
+struct Scene {
+  struct Cloth {
+    int rows = 0;  ///< required, >= 2
+    int cols = 0;  ///< required, >= 1 (one column is a chain)
+    double width = 1.0;   ///< extent along the columns (+x), m
+    double length = 1.0;  ///< extent along the rows (-y or -z), m
+    Plane plane = Plane::Horizontal;
+    Vec3 origin = Vec3(0.0, 0.0, 1.5);  ///< position of node 0
+    double mass = 0.3;                  ///< total, spread equally, kg
+    std::map<int, double> node_mass;    ///< per-node overrides, kg
+  } cloth;
+
+  std::array<SpringGroupParams, kNumSpringTypes> springs{};  ///< by SpringType
+  DampingModel damping_model = DampingModel::AlongSpring;
+  Vec3 gravity = Vec3(0.0, 0.0, -9.81);  ///< m/s^2; zero turns it off
+  double air_drag = 0.0;                 ///< N*s/m per node; zero turns it off
+  std::vector<int> pins;                 ///< node indices held at their start
+
+  struct Solver {
+    Method method = Method::ImplicitEuler;
+    double dt = 0.004;             ///< s
+    double tolerance = 1e-6;       ///< CG stop: ||r|| <= tolerance * ||b||
+    int max_iterations = 500;      ///< CG cap
+    Preconditioner preconditioner = Preconditioner::BlockJacobi;
+    bool project_compression = true;
+    double newton_tolerance = 1e-8;   ///< newton/bdf2: ||g|| <= tol * ||g0||
+    int newton_max_iterations = 20;
+    int max_halvings = 8;          ///< recovery: a rejected step splits at most this deep
+    bool recovery = true;
+  } solver;
+
+  struct Initial {
+    double stretch = 1.0;  ///< scale about the centroid at t = 0
+    double scatter = 0.0;  ///< random offset within a cube of this size, m
+    unsigned seed = 0;
+    bool collapse = false; ///< all nodes at the centroid
+  } initial;
+
+  std::vector<SceneEvent> events;  ///< sorted by time
+
+  int numNodes() const { return cloth.rows * cloth.cols; }
+};
+
+/// Parses and validates YAML text. Throws SceneError naming the field.
+Scene parseScene(const std::string& yaml_text,
+                 const std::vector<std::string>& overrides = {});
+/// Reads a file, then parseScene. Throws SceneError (also for unreadable files).
+Scene loadScene(const std::string& path,
+                const std::vector<std::string>& overrides = {});
+/// Checks every field of an already built Scene (as parseScene does).
+void validateScene(const Scene& scene);
+
+}  // namespace cloth_sim

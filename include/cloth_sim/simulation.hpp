@@ -1,0 +1,122 @@
+// The simulation: a model, its state, its pins and a time stepper. Every
+// client (CLI, benchmark, ROS node) drives the cloth through this class only.
+// Runtime requests are validated first; a rejected request changes nothing.
+#pragma once
+
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "cloth_sim/model.hpp"
+#include "cloth_sim/scene.hpp"
+#include "cloth_sim/step_stats.hpp"
+#include "cloth_sim/stepper.hpp"
+#include "cloth_sim/types.hpp"
+
+namespace cloth_sim {
+
+/// Where a pinned node must be at the end of each step.
+struct PinTarget {
+  Vec3 position = Vec3::Zero();  ///< target now
+  Vec3 velocity = Vec3::Zero();  ///< target drifts at this velocity ...
+  double velocity_until = 0.0;   ///< ... until this simulated time
+};
+
+class Simulation {
+ public:
+  /// Validates the scene (throws SceneError) and sets up the initial state.
+  explicit Simulation(const Scene& scene);
+
+  const Scene& scene() const { return scene_; }
+  const Model& model() const { return model_; }
+  int numNodes() const { return model_.numNodes(); }
+  const VecX& positions() const { return x_; }   ///< 3n
+  const VecX& velocities() const { return v_; }  ///< 3n
+  Vec3 position(int node) const { return x_.segment<3>(3 * node); }
+  double time() const { return t_; }
+  double dt() const { return scene_.solver.dt; }
+  long stepCount() const { return step_count_; }
+
+  /// Applies the scene events that are due, then advances by solver.dt.
+  StepStats step();
+  /// Same, advancing by h (the node divides its timer tick evenly). h > 0.
+  StepStats step(double h);
+
+  // --- runtime requests (the node's services map onto these) ---
+  /// Pins nodes. Empty `targets` pins them where they are; else one per index.
+  Status pin(const std::vector<int>& indices, const std::vector<Vec3>& targets = {});
+  /// Moves one pinned node's target: a jump to `position`, then drift at
+  /// `velocity` for `duration` seconds (zero velocity: stay).
+  Status movePin(int index, const Vec3& position, const Vec3& velocity = Vec3::Zero(),
+                 double duration = 0.0);
+  /// Drives one pin's target at a velocity from where it is now.
+  Status drivePin(int index, const Vec3& velocity, double duration);
+  Status release(const std::vector<int>& indices);
+  void releaseAll();
+  /// spring_type: "stretch", "shear", "bend" or "all"; stiffness > 0 finite;
+  /// damping >= 0 finite, or exactly -1 to keep the current damping.
+  Status setStiffness(const std::string& spring_type, double stiffness, double damping = -1.0);
+  /// Back to the initial state, pins and stiffness of the scene.
+  void reset();
+
+  bool isPinned(int node) const { return pins_.count(node) != 0; }
+  std::vector<int> pinnedNodes() const;
+  const std::map<int, PinTarget>& pins() const { return pins_; }
+  const SpringGroup& group(SpringType type) const {
+    return model_.groups[static_cast<int>(type)];
+  }
+
+  // --- measurements ---
+  double kineticEnergy() const;
+  double elasticEnergy() const;
+  double potentialEnergy() const;  ///< -m g.x
+  double energy() const { return kineticEnergy() + elasticEnergy() + potentialEnergy(); }
+  double maxStrain() const;                 ///< max |d|/L - 1 over springs
+  std::vector<double> nodeStrain() const;   ///< per node, max over its springs
+  double totalWorkIn() const { return work_in_total_; }
+  /// Statistics of the last step() call.
+  const StepStats& lastStats() const { return last_stats_; }
+
+  /// Static equilibrium of the current pins and forces (Newton on f(x) = 0
+  /// with line search), starting from the current positions. Does not change
+  /// the simulation. Returns false if it did not converge to rel_tol.
+  bool solveStatic(VecX* x_out, double rel_tol = 1e-10, int max_iterations = 200) const;
+
+ private:
+  void applyDueEvents();
+  Status applyEvent(const SceneEvent& event);
+  /// One step of h, no recovery; on failure the state is left as it was.
+  /// reject_unconverged: a linear solve short of its tolerance is a failure.
+  StepStats attempt(double h, bool reject_unconverged);
+  /// attempt(h), and on rejection two half steps, down to max_halvings deep.
+  StepStats stepWithRecovery(double h, int depth);
+  /// Energy scale for the blow-up test: kinetic + elastic + m|g| times size.
+  double energyScale() const;
+  void accumulate(const StepStats& part, StepStats* total) const;
+
+  Scene scene_;
+  Model model_;
+  VecX x_, v_;
+  VecX x_prev_, v_prev_;  ///< previous step, for bdf2
+  bool has_prev_ = false;
+  double h_prev_ = 0.0;
+  double size_ = 1.0;  ///< cloth diagonal, m
+  double t_ = 0.0;
+  long step_count_ = 0;
+  std::map<int, PinTarget> pins_;
+  size_t next_event_ = 0;
+  double work_in_total_ = 0.0;
+  double pending_work_ = 0.0;  ///< work by events since the last step
+  StepStats last_stats_;
+  Stepper stepper_;
+  PinnedEnds pin_ends_;                 ///< reused per step
+};
+
+/// Writes an OBJ (vertices, vertex normals, two triangles per cell with
+/// consistent winding). Returns false if the file cannot be written.
+bool writeObj(const std::string& path, const Model& model, const VecX& positions);
+/// Per-vertex normals: area-weighted average of adjacent triangle normals.
+std::vector<Vec3> vertexNormals(const Model& model, const VecX& positions);
+
+}  // namespace cloth_sim

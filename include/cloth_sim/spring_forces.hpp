@@ -1,0 +1,56 @@
+// Force of one spring and its 3x3 Jacobian blocks. Small free functions,
+// tested against finite differences.
+//
+// For d = x_j - x_i, l = |d|, u = d / l, the force on node i is
+//   f_i = k (l - L) u + damping,      f_j = -f_i.
+// Damping: along_spring  c ((v_j - v_i).u) u,  relative_velocity  c (v_j - v_i).
+// Jacobians are given as the 3x3 block K = df_i/dx_j (= -df_i/dx_i), and
+// D = df_i/dv_j (= -df_i/dv_i); the full 6x6 is [[-K, K], [K, -K]].
+#pragma once
+
+#include "cloth_sim/types.hpp"
+
+namespace cloth_sim {
+
+struct SpringParams {
+  double stiffness = 0.0;
+  double damping = 0.0;
+  double rest_length = 0.0;
+  DampingModel damping_model = DampingModel::AlongSpring;
+  /// Unit direction x_j - x_i in the rest layout: the axis used when the
+  /// spring is crushed to (near) zero length, so it pushes apart along it.
+  Vec3 rest_direction = Vec3::UnitX();
+};
+
+/// Below kDegenerateLength * max(L, 1 m) a spring's own direction is
+/// numerically meaningless: the rest direction is used instead, so a collapsed
+/// spring pushes apart along its rest axis and nothing becomes NaN.
+constexpr double kDegenerateLength = 1e-9;
+
+/// Unit axis of the spring (d / |d|, or rest_direction when degenerate) and |d|.
+void springAxis(const Vec3& xi, const Vec3& xj, const SpringParams& p, Vec3* axis,
+                double* length);
+
+/// Force on node i (node j receives the negative).
+Vec3 springForce(const Vec3& xi, const Vec3& xj, const Vec3& vi, const Vec3& vj,
+                 const SpringParams& p);
+
+/// Elastic energy 1/2 k (l - L)^2.
+double springEnergy(const Vec3& xi, const Vec3& xj, const SpringParams& p);
+
+struct SpringJacobian {
+  Mat3 K;  ///< df_i/dx_j
+  Mat3 D;  ///< df_i/dv_j
+};
+
+/// Analytic Jacobian. With project_compression the transverse term
+/// k (1 - L/l)(I - u u^T) is clamped at zero when l < L, which keeps K
+/// positive semi-definite (and so the system matrix SPD). The along-spring
+/// damping's dependence on x is dropped in D's partner (as Baraff-Witkin do);
+/// `include_damping_dx` adds it to K for exact Newton and FD tests.
+SpringJacobian springJacobian(const Vec3& xi, const Vec3& xj, const Vec3& vi,
+                              const Vec3& vj, const SpringParams& p,
+                              bool project_compression,
+                              bool include_damping_dx = false);
+
+}  // namespace cloth_sim

@@ -1,0 +1,28 @@
+// What one step (or one call to Simulation::step) reports.
+#pragma once
+
+#include <string>
+
+namespace cloth_sim {
+
+struct StepStats {
+  int cg_iterations = 0;      ///< summed over Newton iterations and sub-steps
+  double residual = 0.0;      ///< largest final relative CG residual ||r||/||b||
+  int newton_iterations = 0;  ///< nonlinear iterations (1 for implicit_euler)
+  double newton_residual = 0.0;  ///< final ||g|| / ||g0|| (newton, bdf2)
+  bool linear_converged = true;  ///< every CG solve met its tolerance
+  double wall_time_s = 0.0;
+  double assembly_s = 0.0;    ///< forces + Jacobians + matrix fill
+  double solve_s = 0.0;       ///< linear solves
+  double energy = 0.0;        ///< 1/2 m v^2 + elastic - m g.x after the step
+  double max_strain = 0.0;    ///< max over springs of |d|/L - 1
+  double work_in = 0.0;       ///< work done on the cloth by moving pins and stiffness changes
+  bool finite = true;         ///< every position and velocity finite
+  int substeps = 1;           ///< steps actually taken (> 1 after recovery)
+  int halvings = 0;           ///< deepest step halving used by recovery
+  int rejected = 0;           ///< attempts rolled back
+  bool ok = true;             ///< false: the step failed and the state was rolled back
+  std::string failure;        ///< why, when !ok (or what recovery fixed)
+};
+
+}  // namespace cloth_sim

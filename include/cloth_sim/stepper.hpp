@@ -1,0 +1,58 @@
+// Time steppers: each advances (x, v) by h with pinned nodes driven to given
+// end positions. Buffers live here, so a step allocates nothing once sized.
+#pragma once
+
+#include <vector>
+
+#include "cloth_sim/linear_solver.hpp"
+#include "cloth_sim/model.hpp"
+#include "cloth_sim/scene.hpp"
+#include "cloth_sim/step_stats.hpp"
+
+namespace cloth_sim {
+
+/// Pinned nodes and where each must be at the end of the step.
+struct PinnedEnds {
+  std::vector<int> nodes;
+  std::vector<Vec3> targets;
+};
+
+/// The state before the step, for the multistep method (bdf2).
+struct History {
+  const VecX* x_prev = nullptr;
+  const VecX* v_prev = nullptr;
+  double h_prev = 0.0;  ///< bdf2 runs only when h_prev == h; else backward Euler
+};
+
+class Stepper {
+ public:
+  explicit Stepper(const Scene::Solver& settings) : settings_(settings) {}
+  const Scene::Solver& settings() const { return settings_; }
+
+  /// Advances x and v in place by h. Fills the solver parts of StepStats
+  /// (iterations, residuals, timings, ok/failure); energy and strain are the
+  /// caller's. On failure x and v hold garbage: the caller rolls back.
+  StepStats step(const Model& model, double h, const PinnedEnds& pins,
+                 const History& history, VecX& x, VecX& v);
+
+ private:
+  StepStats implicitEuler(const Model& model, double h, VecX& x, VecX& v);
+  /// Backward Euler (beta = 1, a = (x0, v0)) or BDF2 (beta = 2/3), solved by
+  /// Newton with a backtracking line search on ||g||.
+  StepStats newtonSolve(const Model& model, double h, double beta, const VecX& ax,
+                        const VecX& av, int max_iterations, VecX& x, VecX& v);
+  StepStats symplecticEuler(const Model& model, double h, VecX& x, VecX& v);
+  void setPins(const Model& model, const PinnedEnds& pins);
+  /// g = M (v1 - av) - beta h f(ax + beta h v1, v1) on free nodes; returns ||g||.
+  double residual(const Model& model, double bh, const VecX& ax, const VecX& av,
+                  const VecX& v1, VecX& x1, VecX& g);
+
+  Scene::Solver settings_;
+  std::vector<char> free_;
+  const PinnedEnds* pins_ = nullptr;
+  SystemMatrix A_;
+  CgWorkspace cg_;
+  VecX f_, rhs_, dv_, dfdx_v_, g_, x_trial_, v_trial_, g_trial_, delta_, ax_, av_, pinned_dv_;
+};
+
+}  // namespace cloth_sim

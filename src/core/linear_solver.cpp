@@ -1,0 +1,212 @@
+#include "cloth_sim/linear_solver.hpp"
+
+#include <cmath>
+
+namespace cloth_sim {
+
+void SystemMatrix::resize(int num_nodes, int num_springs) {
+  diag_.resize(num_nodes);
+  full_diag_.resize(num_nodes);
+  coupling_.resize(num_springs);
+}
+
+void SystemMatrix::reset(const std::vector<double>& mass) {
+  for (size_t i = 0; i < diag_.size(); ++i) diag_[i] = mass[i] * Mat3::Identity();
+  for (auto& c : coupling_) c.setZero();
+}
+
+void SystemMatrix::multiply(const std::vector<Spring>& springs, const std::vector<char>& free,
+                            const VecX& x, VecX& y) const {
+  const int n = numNodes();
+  y.resize(3 * n);
+  for (int i = 0; i < n; ++i) y.segment<3>(3 * i).noalias() = diag_[i] * x.segment<3>(3 * i);
+  for (size_t s = 0; s < springs.size(); ++s) {
+    const int i = springs[s].i, j = springs[s].j;
+    const Vec3 t = coupling_[s] * (x.segment<3>(3 * i) - x.segment<3>(3 * j));
+    y.segment<3>(3 * i) += t;
+    y.segment<3>(3 * j) -= t;
+  }
+  for (int i = 0; i < n; ++i) {
+    if (!free[i]) y.segment<3>(3 * i).setZero();
+  }
+}
+
+void SystemMatrix::accumulateDiagonal(const std::vector<Spring>& springs) {
+  full_diag_ = diag_;
+  for (size_t s = 0; s < springs.size(); ++s) {
+    full_diag_[springs[s].i] += coupling_[s];
+    full_diag_[springs[s].j] += coupling_[s];
+  }
+}
+
+void CholeskyFactor::buildPattern(int n, const std::vector<Spring>& springs) {
+  // Lower triangle only: node blocks (i, i) and spring blocks (max, min).
+  std::vector<Eigen::Triplet<double>> entries;
+  entries.reserve(6 * n + 9 * springs.size());
+  auto block = [&](int row_node, int col_node) {
+    for (int c = 0; c < 3; ++c) {
+      for (int r = 0; r < 3; ++r) {
+        const int row = 3 * row_node + r, col = 3 * col_node + c;
+        if (row >= col) entries.emplace_back(row, col, 1.0);
+      }
+    }
+  };
+  for (int i = 0; i < n; ++i) block(i, i);
+  for (const Spring& s : springs) block(std::max(s.i, s.j), std::min(s.i, s.j));
+  matrix_.resize(3 * n, 3 * n);
+  matrix_.setFromTriplets(entries.begin(), entries.end());
+  matrix_.makeCompressed();
+  auto index_of = [&](int row, int col) {
+    return static_cast<int>(&matrix_.coeffRef(row, col) - matrix_.valuePtr());
+  };
+  diag_index_.resize(9 * n);
+  for (int i = 0; i < n; ++i) {
+    for (int c = 0; c < 3; ++c) {
+      for (int r = c; r < 3; ++r) diag_index_[9 * i + 3 * c + r] = index_of(3 * i + r, 3 * i + c);
+    }
+  }
+  coupling_index_.resize(9 * springs.size());
+  for (size_t k = 0; k < springs.size(); ++k) {
+    const int hi = std::max(springs[k].i, springs[k].j), lo = std::min(springs[k].i, springs[k].j);
+    for (int c = 0; c < 3; ++c) {
+      for (int r = 0; r < 3; ++r) coupling_index_[9 * k + 3 * c + r] = index_of(3 * hi + r, 3 * lo + c);
+    }
+  }
+  ldlt_.analyzePattern(matrix_);
+  num_nodes_ = n;
+  num_springs_ = springs.size();
+}
+
+bool CholeskyFactor::factorize(const SystemMatrix& A, const std::vector<Spring>& springs,
+                               const std::vector<char>& free) {
+  const int n = A.numNodes();
+  if (n != num_nodes_ || springs.size() != num_springs_) buildPattern(n, springs);
+  double* values = matrix_.valuePtr();
+  for (int i = 0; i < n; ++i) {
+    const Mat3 D = free[i] ? A.fullDiag(i) : Mat3::Identity();
+    for (int c = 0; c < 3; ++c) {
+      for (int r = c; r < 3; ++r) values[diag_index_[9 * i + 3 * c + r]] = D(r, c);
+    }
+  }
+  for (size_t k = 0; k < springs.size(); ++k) {
+    const bool both_free = free[springs[k].i] && free[springs[k].j];
+    const Mat3& S = A.coupling(static_cast<int>(k));  // symmetric: A_ij = A_ji = -S
+    for (int c = 0; c < 3; ++c) {
+      for (int r = 0; r < 3; ++r) values[coupling_index_[9 * k + 3 * c + r]] = both_free ? -S(r, c) : 0.0;
+    }
+  }
+  ldlt_.factorize(matrix_);
+  return ldlt_.info() == Eigen::Success;
+}
+
+namespace {
+
+void applyPreconditioner(Preconditioner kind, const std::vector<Mat3>& inv_diag,
+                         const CholeskyFactor* cholesky, const std::vector<char>& free,
+                         const VecX& r, VecX& z) {
+  if (kind == Preconditioner::None) {
+    z = r;
+    return;
+  }
+  if (kind == Preconditioner::Cholesky) {
+    cholesky->solve(r, z);
+    for (size_t i = 0; i < free.size(); ++i) {
+      if (!free[i]) z.segment<3>(3 * i).setZero();
+    }
+    return;
+  }
+  const int n = static_cast<int>(inv_diag.size());
+  for (int i = 0; i < n; ++i) {
+    if (free[i]) {
+      z.segment<3>(3 * i).noalias() = inv_diag[i] * r.segment<3>(3 * i);
+    } else {
+      z.segment<3>(3 * i).setZero();
+    }
+  }
+}
+
+double freeNorm(const VecX& v, const std::vector<char>& free) {
+  double sum = 0.0;
+  for (size_t i = 0; i < free.size(); ++i) {
+    if (free[i]) sum += v.segment<3>(3 * i).squaredNorm();
+  }
+  return std::sqrt(sum);
+}
+
+}  // namespace
+
+CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& springs,
+                           const std::vector<char>& free, const VecX& b, VecX& x,
+                           Preconditioner preconditioner, double tolerance,
+                           int max_iterations, CgWorkspace& ws) {
+  const int n = A.numNodes();
+  const int dim = 3 * n;
+  ws.r.resize(dim);
+  ws.z.resize(dim);
+  ws.p.resize(dim);
+  ws.q.resize(dim);
+  for (int i = 0; i < n; ++i) {
+    if (!free[i]) x.segment<3>(3 * i).setZero();
+  }
+
+  CgResult result;
+  const double b_norm = freeNorm(b, free);
+  if (!(b_norm > 0.0)) {
+    x.setZero();
+    result.converged = std::isfinite(b_norm);
+    result.relative_residual = result.converged ? 0.0 : b_norm;
+    return result;
+  }
+  if (preconditioner == Preconditioner::BlockJacobi) {
+    ws.inv_diag.resize(n);
+    for (int i = 0; i < n; ++i) ws.inv_diag[i] = A.fullDiag(i).inverse();
+  } else if (preconditioner == Preconditioner::Cholesky) {
+    if (!ws.cholesky) ws.cholesky = std::make_shared<CholeskyFactor>();
+    if (!ws.cholesky->factorize(A, springs, free)) {
+      result.relative_residual = 1.0;
+      return result;  // not positive definite: the caller's recovery decides
+    }
+  }
+
+  A.multiply(springs, free, x, ws.q);
+  ws.r = b - ws.q;
+  for (int i = 0; i < n; ++i) {
+    if (!free[i]) ws.r.segment<3>(3 * i).setZero();
+  }
+  double r_norm = ws.r.norm();
+  // A warm start worse than zero is dropped.
+  if (!(r_norm <= b_norm)) {
+    x.setZero();
+    ws.r = b;
+    for (int i = 0; i < n; ++i) {
+      if (!free[i]) ws.r.segment<3>(3 * i).setZero();
+    }
+    r_norm = b_norm;
+  }
+  const double target = tolerance * b_norm;
+  applyPreconditioner(preconditioner, ws.inv_diag, ws.cholesky.get(), free, ws.r, ws.z);
+  ws.p = ws.z;
+  double rz = ws.r.dot(ws.z);
+  int k = 0;
+  while (r_norm > target && k < max_iterations) {
+    A.multiply(springs, free, ws.p, ws.q);
+    const double pq = ws.p.dot(ws.q);
+    if (!(pq > 0.0)) break;  // not positive definite (or NaN): stop, report
+    const double alpha = rz / pq;
+    x.noalias() += alpha * ws.p;
+    ws.r.noalias() -= alpha * ws.q;
+    r_norm = ws.r.norm();
+    ++k;
+    if (r_norm <= target) break;
+    applyPreconditioner(preconditioner, ws.inv_diag, ws.cholesky.get(), free, ws.r, ws.z);
+    const double rz_new = ws.r.dot(ws.z);
+    ws.p = ws.z + (rz_new / rz) * ws.p;
+    rz = rz_new;
+  }
+  result.iterations = k;
+  result.relative_residual = r_norm / b_norm;
+  result.converged = r_norm <= target;
+  return result;
+}
+
+}  // namespace cloth_sim

@@ -1,0 +1,771 @@
+// Scene files: YAML -> Scene, with overrides, and the checks every Scene must
+// pass. Every error message starts with the dotted path of the bad field, so a
+// user can find it in the file (or in the --set that produced it).
+#include "cloth_sim/scene.hpp"
+
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace cloth_sim {
+namespace {
+
+constexpr long long kMaxNodes = 4000000;  // a typo like rows: 200000 fails here, not in malloc
+constexpr int kMaxHalvings = 30;          // dt / 2^30 is far below any useful step
+
+// ------------------------------------------------------------ messages ----
+
+[[noreturn]] void fail(const std::string& path, const std::string& what) {
+  throw SceneError(path + ": " + what);
+}
+
+/// Shortest text that reads back as the same double ("-3", "1e-06", "nan").
+std::string formatNumber(double value) {
+  char buffer[64];
+  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value);
+  return std::string(buffer, result.ptr);
+}
+
+std::string child(const std::string& path, const std::string& key) {
+  return path.empty() ? key : path + "." + key;
+}
+
+std::string element(const std::string& path, size_t index) {
+  return path + "[" + std::to_string(index) + "]";
+}
+
+/// How a YAML value looks to the user, for "expected X, got Y".
+std::string describe(const YAML::Node& node) {
+  switch (node.Type()) {
+    case YAML::NodeType::Scalar:
+      return node.Tag() == "!" ? "the quoted string '" + node.Scalar() + "'"
+                               : "'" + node.Scalar() + "'";
+    case YAML::NodeType::Sequence: return "a sequence";
+    case YAML::NodeType::Map: return "a map";
+    default: return "nothing (null)";
+  }
+}
+
+std::string joinNames(const std::vector<std::string>& names) {
+  std::string text;
+  for (size_t i = 0; i < names.size(); ++i) text += (i ? ", " : "") + names[i];
+  return text;
+}
+
+// -------------------------------------------------------- YAML readers ----
+
+/// A YAML map checked against the keys it may hold. Null or absent reads as
+/// an empty map; anything else that is not a map, an unknown key or a
+/// repeated key is an error naming it.
+class Fields {
+ public:
+  Fields(const YAML::Node& node, std::string path, std::vector<std::string> allowed)
+      : path_(std::move(path)) {
+    if (!node.IsDefined() || node.IsNull()) return;
+    if (!node.IsMap()) {
+      fail(path_.empty() ? "scene" : path_, "expected a map, got " + describe(node));
+    }
+    for (auto it = node.begin(); it != node.end(); ++it) {
+      if (!it->first.IsScalar()) {
+        fail(path_.empty() ? "scene" : path_, "keys must be names, got " + describe(it->first));
+      }
+      const std::string key = it->first.Scalar();
+      if (std::find(allowed.begin(), allowed.end(), key) == allowed.end()) {
+        fail(child(path_, key), "unknown key (expected one of " + joinNames(allowed) + ")");
+      }
+      if (has(key)) fail(child(path_, key), "duplicate key");
+      entries_.emplace_back(key, it->second);
+    }
+  }
+
+  bool has(const std::string& key) const {
+    for (const auto& entry : entries_) {
+      if (entry.first == key) return true;
+    }
+    return false;
+  }
+  YAML::Node get(const std::string& key) const {
+    for (const auto& entry : entries_) {
+      if (entry.first == key) return entry.second;
+    }
+    return YAML::Node();
+  }
+  std::string path(const std::string& key) const { return child(path_, key); }
+  const std::string& path() const { return path_; }
+
+ private:
+  std::string path_;
+  std::vector<std::pair<std::string, YAML::Node>> entries_;
+};
+
+bool isYamlInfOrNan(const std::string& text) {
+  static const std::set<std::string> kSpecial = {
+      ".inf", ".Inf", ".INF", "+.inf", "+.Inf", "+.INF", "-.inf", "-.Inf", "-.INF",
+      ".nan", ".NaN", ".NAN"};
+  return kSpecial.count(text) != 0;
+}
+
+/// Parses the whole text as a decimal number (locale-independent). Non-finite
+/// spellings ("nan", ".inf", ...) and numbers beyond the range of a double
+/// come back as NaN so the caller rejects them as not finite.
+bool textToDouble(const std::string& text, double* value) {
+  if (isYamlInfOrNan(text)) {
+    *value = std::numeric_limits<double>::quiet_NaN();
+    return true;
+  }
+  const char* begin = text.data();
+  const char* end = begin + text.size();
+  if (begin != end && *begin == '+') ++begin;
+  if (begin == end) return false;
+  const auto result = std::from_chars(begin, end, *value);
+  if (result.ptr != end) return false;
+  if (result.ec == std::errc::result_out_of_range) {
+    *value = std::numeric_limits<double>::quiet_NaN();
+    return true;
+  }
+  return result.ec == std::errc();
+}
+
+/// The scalar text of a plain (unquoted) YAML scalar, or an error saying what
+/// was expected instead.
+const std::string& plainScalar(const YAML::Node& node, const std::string& path,
+                               const std::string& expected) {
+  if (!node.IsScalar() || node.Tag() == "!") {
+    fail(path, "expected " + expected + ", got " + describe(node));
+  }
+  return node.Scalar();
+}
+
+double readNumber(const YAML::Node& node, const std::string& path) {
+  const std::string& text = plainScalar(node, path, "a number");
+  double value = 0.0;
+  if (!textToDouble(text, &value)) fail(path, "expected a number, got '" + text + "'");
+  if (!std::isfinite(value)) fail(path, "must be a finite number, got '" + text + "'");
+  return value;
+}
+
+/// An integer in [lo, hi]. "24.0" and "1e3" are accepted: they are integers.
+long long readInteger(const YAML::Node& node, const std::string& path, long long lo,
+                      long long hi) {
+  const std::string& text = plainScalar(node, path, "an integer");
+  long long value = 0;
+  const char* begin = text.data();
+  const char* end = begin + text.size();
+  if (begin != end && *begin == '+') ++begin;
+  const auto result = std::from_chars(begin, end, value);
+  if (result.ec != std::errc() || result.ptr != end) {
+    double number = 0.0;
+    if (!textToDouble(text, &number) || !std::isfinite(number) ||
+        number != std::floor(number)) {
+      fail(path, "expected an integer, got '" + text + "'");
+    }
+    if (number < static_cast<double>(lo) || number > static_cast<double>(hi)) {
+      fail(path, "integer out of range [" + std::to_string(lo) + ", " + std::to_string(hi) +
+                     "], got '" + text + "'");
+    }
+    value = static_cast<long long>(number);
+  }
+  if (value < lo || value > hi) {
+    fail(path, "integer out of range [" + std::to_string(lo) + ", " + std::to_string(hi) +
+                   "], got '" + text + "'");
+  }
+  return value;
+}
+
+int readInt(const YAML::Node& node, const std::string& path) {
+  return static_cast<int>(readInteger(node, path, std::numeric_limits<int>::min(),
+                                      std::numeric_limits<int>::max()));
+}
+
+bool readBool(const YAML::Node& node, const std::string& path) {
+  const std::string& text = plainScalar(node, path, "true or false");
+  if (text == "true" || text == "True" || text == "TRUE") return true;
+  if (text == "false" || text == "False" || text == "FALSE") return false;
+  fail(path, "expected true or false, got '" + text + "'");
+}
+
+std::string readName(const YAML::Node& node, const std::string& path) {
+  if (!node.IsScalar()) fail(path, "expected a name, got " + describe(node));
+  return node.Scalar();
+}
+
+Vec3 readVec3(const YAML::Node& node, const std::string& path) {
+  if (!node.IsSequence()) fail(path, "expected 3 numbers [x, y, z], got " + describe(node));
+  if (node.size() != 3) {
+    fail(path, "expected 3 numbers [x, y, z], got " + std::to_string(node.size()));
+  }
+  Vec3 value;
+  for (size_t k = 0; k < 3; ++k) value[k] = readNumber(node[k], element(path, k));
+  return value;
+}
+
+/// A list of node indices (range checks come later, in validateScene).
+std::vector<int> readIndices(const YAML::Node& node, const std::string& path) {
+  if (!node.IsDefined() || node.IsNull()) return {};
+  if (!node.IsSequence()) fail(path, "expected a list of node indices, got " + describe(node));
+  std::vector<int> indices;
+  for (size_t k = 0; k < node.size(); ++k) indices.push_back(readInt(node[k], element(path, k)));
+  return indices;
+}
+
+// ------------------------------------------------------ scene sections ----
+
+void readCloth(const YAML::Node& node, Scene::Cloth* cloth) {
+  const Fields f(node, "cloth",
+                 {"rows", "cols", "width", "length", "plane", "origin", "mass", "node_mass"});
+  if (!f.has("rows")) fail(f.path("rows"), "required (number of node rows, >= 2)");
+  if (!f.has("cols")) fail(f.path("cols"), "required (number of node columns, >= 1)");
+  cloth->rows = readInt(f.get("rows"), f.path("rows"));
+  cloth->cols = readInt(f.get("cols"), f.path("cols"));
+  if (f.has("width")) cloth->width = readNumber(f.get("width"), f.path("width"));
+  if (f.has("length")) cloth->length = readNumber(f.get("length"), f.path("length"));
+  if (f.has("plane")) {
+    const std::string name = readName(f.get("plane"), f.path("plane"));
+    if (name == "horizontal") {
+      cloth->plane = Plane::Horizontal;
+    } else if (name == "vertical") {
+      cloth->plane = Plane::Vertical;
+    } else {
+      fail(f.path("plane"), "unknown plane '" + name + "' (expected horizontal, vertical)");
+    }
+  }
+  if (f.has("origin")) cloth->origin = readVec3(f.get("origin"), f.path("origin"));
+  if (f.has("mass")) cloth->mass = readNumber(f.get("mass"), f.path("mass"));
+
+  const YAML::Node masses = f.get("node_mass");
+  const std::string masses_path = f.path("node_mass");
+  if (masses.IsDefined() && !masses.IsNull()) {
+    if (!masses.IsMap()) {
+      fail(masses_path, "expected a map {node index: mass}, got " + describe(masses));
+    }
+    for (auto it = masses.begin(); it != masses.end(); ++it) {
+      const std::string key_text = it->first.IsScalar() ? it->first.Scalar() : "?";
+      const std::string path = child(masses_path, key_text);
+      const int index = readInt(it->first, path);
+      if (cloth->node_mass.count(index)) fail(path, "duplicate node " + std::to_string(index));
+      cloth->node_mass[index] = readNumber(it->second, path);
+    }
+  }
+}
+
+void readSprings(const YAML::Node& node, Scene* scene) {
+  const Fields f(node, "springs", {"stretch", "shear", "bend", "damping_model"});
+  // Defaults of a group named without values: the demo cloth's.
+  const double kDefaultStiffness[kNumSpringTypes] = {5000.0, 500.0, 5.0};
+  const double kDefaultDamping[kNumSpringTypes] = {2.0, 0.5, 0.0};
+  for (int t = 0; t < kNumSpringTypes; ++t) {
+    const std::string name = toString(static_cast<SpringType>(t));
+    SpringGroupParams& group = scene->springs[t];
+    group = SpringGroupParams{};
+    if (!f.has(name)) continue;  // absent: no springs of this type
+    const Fields g(f.get(name), f.path(name), {"stiffness", "damping"});
+    group.stiffness = g.has("stiffness") ? readNumber(g.get("stiffness"), g.path("stiffness"))
+                                         : kDefaultStiffness[t];
+    group.damping = g.has("damping") ? readNumber(g.get("damping"), g.path("damping"))
+                                     : kDefaultDamping[t];
+    // Stiffness 0 turns the group off (absent from the model, costs nothing);
+    // a negative one stays enabled so validateScene rejects it.
+    group.enabled = group.stiffness != 0.0;
+  }
+  if (f.has("damping_model")) {
+    const std::string name = readName(f.get("damping_model"), f.path("damping_model"));
+    if (name == "along_spring") {
+      scene->damping_model = DampingModel::AlongSpring;
+    } else if (name == "relative_velocity") {
+      scene->damping_model = DampingModel::RelativeVelocity;
+    } else {
+      fail(f.path("damping_model"),
+           "unknown damping model '" + name + "' (expected along_spring, relative_velocity)");
+    }
+  }
+}
+
+void readSolver(const YAML::Node& node, Scene::Solver* solver) {
+  const Fields f(node, "solver",
+                 {"method", "dt", "tolerance", "max_iterations", "preconditioner",
+                  "project_compression", "newton_tolerance", "newton_max_iterations",
+                  "max_halvings", "recovery"});
+  if (f.has("method")) {
+    const std::string name = readName(f.get("method"), f.path("method"));
+    if (!parseMethod(name, &solver->method)) {
+      fail(f.path("method"), "unknown method '" + name +
+                                 "' (expected implicit_euler, newton, bdf2, symplectic_euler)");
+    }
+  }
+  if (f.has("dt")) solver->dt = readNumber(f.get("dt"), f.path("dt"));
+  if (f.has("tolerance")) solver->tolerance = readNumber(f.get("tolerance"), f.path("tolerance"));
+  if (f.has("max_iterations")) {
+    solver->max_iterations = readInt(f.get("max_iterations"), f.path("max_iterations"));
+  }
+  if (f.has("preconditioner")) {
+    const std::string name = readName(f.get("preconditioner"), f.path("preconditioner"));
+    if (name == "none") {
+      solver->preconditioner = Preconditioner::None;
+    } else if (name == "block_jacobi") {
+      solver->preconditioner = Preconditioner::BlockJacobi;
+    } else if (name == "cholesky") {
+      solver->preconditioner = Preconditioner::Cholesky;
+    } else {
+      fail(f.path("preconditioner"),
+           "unknown preconditioner '" + name + "' (expected none, block_jacobi, cholesky)");
+    }
+  }
+  if (f.has("project_compression")) {
+    solver->project_compression =
+        readBool(f.get("project_compression"), f.path("project_compression"));
+  }
+  if (f.has("newton_tolerance")) {
+    solver->newton_tolerance = readNumber(f.get("newton_tolerance"), f.path("newton_tolerance"));
+  }
+  if (f.has("newton_max_iterations")) {
+    solver->newton_max_iterations =
+        readInt(f.get("newton_max_iterations"), f.path("newton_max_iterations"));
+  }
+  if (f.has("max_halvings")) {
+    solver->max_halvings = readInt(f.get("max_halvings"), f.path("max_halvings"));
+  }
+  if (f.has("recovery")) solver->recovery = readBool(f.get("recovery"), f.path("recovery"));
+}
+
+void readInitial(const YAML::Node& node, Scene::Initial* initial) {
+  const Fields f(node, "initial", {"stretch", "scatter", "seed", "collapse"});
+  if (f.has("stretch")) initial->stretch = readNumber(f.get("stretch"), f.path("stretch"));
+  if (f.has("scatter")) initial->scatter = readNumber(f.get("scatter"), f.path("scatter"));
+  if (f.has("seed")) {
+    initial->seed = static_cast<unsigned>(
+        readInteger(f.get("seed"), f.path("seed"), 0, std::numeric_limits<unsigned>::max()));
+  }
+  if (f.has("collapse")) initial->collapse = readBool(f.get("collapse"), f.path("collapse"));
+}
+
+SceneEvent readEvent(const YAML::Node& node, const std::string& path) {
+  static const std::vector<std::string> kActions = {"set_stiffness", "move_pin", "pin",
+                                                    "release"};
+  std::vector<std::string> keys = {"time"};
+  keys.insert(keys.end(), kActions.begin(), kActions.end());
+  if (!node.IsDefined() || node.IsNull()) fail(path, "expected a map {time: ..., <action>: ...}");
+  const Fields f(node, path, keys);
+
+  SceneEvent event;
+  if (!f.has("time")) fail(f.path("time"), "required (simulated time in s, >= 0)");
+  event.time = readNumber(f.get("time"), f.path("time"));
+
+  std::vector<std::string> actions;
+  for (const auto& action : kActions) {
+    if (f.has(action)) actions.push_back(action);
+  }
+  if (actions.size() != 1) {
+    fail(path, "expected exactly one action (set_stiffness, move_pin, pin, release), got " +
+                   (actions.empty() ? std::string("none")
+                                    : std::to_string(actions.size()) + ": " + joinNames(actions)));
+  }
+  const std::string& action = actions.front();
+  const std::string action_path = f.path(action);
+  const YAML::Node body = f.get(action);
+
+  if (action == "set_stiffness") {
+    event.kind = SceneEvent::Kind::SetStiffness;
+    const Fields g(body, action_path, {"spring_type", "stiffness", "damping"});
+    if (!g.has("spring_type")) {
+      fail(g.path("spring_type"), "required (stretch, shear, bend or all)");
+    }
+    const std::string type = readName(g.get("spring_type"), g.path("spring_type"));
+    if (type == "all") {
+      event.all_types = true;
+    } else if (!parseSpringType(type, &event.spring_type)) {
+      fail(g.path("spring_type"),
+           "unknown spring type '" + type + "' (expected stretch, shear, bend, all)");
+    }
+    if (!g.has("stiffness")) fail(g.path("stiffness"), "required (N/m, > 0)");
+    event.stiffness = readNumber(g.get("stiffness"), g.path("stiffness"));
+    if (g.has("damping")) {
+      // In SceneEvent a negative damping means "keep"; in a file it is a mistake.
+      event.damping = readNumber(g.get("damping"), g.path("damping"));
+      if (event.damping < 0.0) {
+        fail(g.path("damping"), "must be >= 0, got " + formatNumber(event.damping));
+      }
+    }
+  } else if (action == "move_pin") {
+    event.kind = SceneEvent::Kind::MovePin;
+    const Fields g(body, action_path, {"index", "position", "velocity", "duration"});
+    if (!g.has("index")) fail(g.path("index"), "required (the pinned node to move)");
+    event.index = readInt(g.get("index"), g.path("index"));
+    if (g.has("position")) event.position = readVec3(g.get("position"), g.path("position"));
+    if (g.has("velocity")) event.velocity = readVec3(g.get("velocity"), g.path("velocity"));
+    if (!event.position && !event.velocity) {
+      fail(action_path, "expected position, velocity (with duration) or both");
+    }
+    if (g.has("duration")) {
+      if (!event.velocity) fail(g.path("duration"), "only applies with velocity");
+      event.duration = readNumber(g.get("duration"), g.path("duration"));
+    } else if (event.velocity) {
+      fail(g.path("duration"), "required with velocity (s, > 0)");
+    }
+  } else if (action == "pin") {
+    event.kind = SceneEvent::Kind::Pin;
+    if (!body.IsSequence()) {
+      fail(action_path, "expected a list of node indices, got " + describe(body));
+    }
+    event.indices = readIndices(body, action_path);
+  } else {
+    event.kind = SceneEvent::Kind::Release;
+    if (body.IsScalar() && body.Scalar() == "all") {
+      event.release_all = true;
+    } else if (body.IsSequence()) {
+      event.indices = readIndices(body, action_path);
+    } else {
+      fail(action_path, "expected 'all' or a list of node indices, got " + describe(body));
+    }
+  }
+  return event;
+}
+
+Scene sceneFromYaml(const YAML::Node& root) {
+  const Fields top(root, "",
+                   {"cloth", "springs", "gravity", "air_drag", "pins", "solver", "initial",
+                    "events"});
+  Scene scene;
+  readCloth(top.get("cloth"), &scene.cloth);
+  readSprings(top.get("springs"), &scene);
+  if (top.has("gravity")) scene.gravity = readVec3(top.get("gravity"), "gravity");
+  if (top.has("air_drag")) scene.air_drag = readNumber(top.get("air_drag"), "air_drag");
+  scene.pins = readIndices(top.get("pins"), "pins");
+  readSolver(top.get("solver"), &scene.solver);
+  readInitial(top.get("initial"), &scene.initial);
+
+  const YAML::Node events = top.get("events");
+  if (events.IsDefined() && !events.IsNull()) {
+    if (!events.IsSequence()) fail("events", "expected a list of events, got " + describe(events));
+    for (size_t k = 0; k < events.size(); ++k) {
+      scene.events.push_back(readEvent(events[k], element("events", k)));
+    }
+  }
+  validateScene(scene);
+  return scene;
+}
+
+// ----------------------------------------------------------- overrides ----
+
+/// One step of an override's key path: a map key or a sequence index.
+struct PathStep {
+  std::string key;
+  long index = -1;  ///< >= 0: a sequence element
+};
+
+/// Splits "events[0].time" into {events, [0], time}; false if malformed.
+bool splitKeyPath(const std::string& text, std::vector<PathStep>* steps) {
+  size_t pos = 0;
+  while (true) {
+    const size_t stop = text.find_first_of(".[", pos);
+    const std::string key = text.substr(pos, stop == std::string::npos ? std::string::npos
+                                                                          : stop - pos);
+    if (key.empty()) return false;
+    steps->push_back({key, -1});
+    pos = stop;
+    while (pos != std::string::npos && text[pos] == '[') {
+      const size_t close = text.find(']', pos);
+      if (close == std::string::npos || close == pos + 1) return false;
+      const std::string digits = text.substr(pos + 1, close - pos - 1);
+      if (digits.find_first_not_of("0123456789") != std::string::npos || digits.size() > 9) {
+        return false;
+      }
+      steps->push_back({"", std::stol(digits)});
+      pos = close + 1;
+      if (pos == text.size()) return true;
+      if (text[pos] != '.' && text[pos] != '[') return false;
+    }
+    if (pos == std::string::npos) return true;
+    ++pos;  // skip '.'
+  }
+}
+
+std::string trim(const std::string& text) {
+  const size_t first = text.find_first_not_of(" \t");
+  if (first == std::string::npos) return "";
+  const size_t last = text.find_last_not_of(" \t");
+  return text.substr(first, last - first + 1);
+}
+
+/// Sets one `key.path=value` in the YAML tree, creating intermediate maps.
+void applyOverride(YAML::Node root, const std::string& override_text) {
+  const std::string name = "override '" + override_text + "'";
+  const size_t eq = override_text.find('=');
+  if (eq == std::string::npos) {
+    throw SceneError(name + ": expected key.path=value, e.g. solver.dt=0.001");
+  }
+  const std::string key_path = trim(override_text.substr(0, eq));
+  std::vector<PathStep> steps;
+  if (!splitKeyPath(key_path, &steps)) {
+    throw SceneError(name + ": malformed key path '" + key_path +
+                     "' (expected names separated by '.', e.g. springs.bend.stiffness)");
+  }
+  YAML::Node value;
+  try {
+    value = YAML::Load(override_text.substr(eq + 1));
+  } catch (const YAML::Exception& e) {
+    throw SceneError(name + ": cannot parse the value as YAML: " + e.msg);
+  }
+
+  YAML::Node node = root;  // shares the tree: assignments below edit root
+  std::string walked;
+  for (size_t k = 0; k < steps.size(); ++k) {
+    const PathStep& step = steps[k];
+    const bool last = k + 1 == steps.size();
+    if (step.index < 0) {
+      if (node.IsNull()) node = YAML::Node(YAML::NodeType::Map);
+      if (!node.IsMap()) {
+        throw SceneError(name + ": " + walked + " is not a map, cannot set '" + step.key + "'");
+      }
+      walked = child(walked, step.key);
+      if (last) {
+        node[step.key] = value;
+      } else {
+        const YAML::Node next = node[step.key];
+        if (!next.IsDefined() || next.IsNull()) node[step.key] = YAML::Node(YAML::NodeType::Map);
+        node.reset(node[step.key]);
+      }
+    } else {
+      if (!node.IsSequence() || static_cast<size_t>(step.index) >= node.size()) {
+        throw SceneError(name + ": " + walked + " has no element [" +
+                         std::to_string(step.index) + "]");
+      }
+      walked = element(walked, static_cast<size_t>(step.index));
+      if (last) {
+        node[static_cast<size_t>(step.index)] = value;
+      } else {
+        node.reset(node[static_cast<size_t>(step.index)]);
+      }
+    }
+  }
+}
+
+Scene parseWithSource(const std::string& yaml_text, const std::vector<std::string>& overrides,
+                      const std::string& source) {
+  const std::string prefix = source.empty() ? "" : source + ": ";
+  YAML::Node root;
+  try {
+    const std::vector<YAML::Node> documents = YAML::LoadAll(yaml_text);
+    if (documents.size() > 1) {
+      throw SceneError(prefix + "expected one YAML document, got " +
+                       std::to_string(documents.size()));
+    }
+    root = documents.empty() ? YAML::Node(YAML::NodeType::Map) : documents.front();
+  } catch (const YAML::Exception& e) {
+    throw SceneError(prefix + "YAML syntax error at line " + std::to_string(e.mark.line + 1) +
+                     ", column " + std::to_string(e.mark.column + 1) + ": " + e.msg);
+  }
+  if (root.IsNull()) root = YAML::Node(YAML::NodeType::Map);
+  if (!root.IsMap()) fail("scene", "expected a map at the top level, got " + describe(root));
+  for (const std::string& text : overrides) applyOverride(root, text);
+  try {
+    return sceneFromYaml(root);
+  } catch (const YAML::Exception& e) {  // not expected: the readers check types first
+    throw SceneError(prefix + "cannot read the scene: " + e.msg);
+  }
+}
+
+// ---------------------------------------------------------- validation ----
+
+void requireFinite(double value, const std::string& path) {
+  if (!std::isfinite(value)) fail(path, "must be a finite number, got " + formatNumber(value));
+}
+
+void requirePositive(double value, const std::string& path) {
+  requireFinite(value, path);
+  if (!(value > 0.0)) fail(path, "must be > 0, got " + formatNumber(value));
+}
+
+void requireNonNegative(double value, const std::string& path) {
+  requireFinite(value, path);
+  if (value < 0.0) fail(path, "must be >= 0, got " + formatNumber(value));
+}
+
+void requireFraction(double value, const std::string& path) {
+  requirePositive(value, path);
+  if (!(value < 1.0)) fail(path, "must be < 1 (a relative tolerance), got " + formatNumber(value));
+}
+
+void requireAtLeast(long long value, long long minimum, const std::string& path) {
+  if (value < minimum) {
+    fail(path, "must be >= " + std::to_string(minimum) + ", got " + std::to_string(value));
+  }
+}
+
+void requireFiniteVec(const Vec3& value, const std::string& path) {
+  for (int k = 0; k < 3; ++k) requireFinite(value[k], element(path, static_cast<size_t>(k)));
+}
+
+void requireNode(int index, int num_nodes, const std::string& path) {
+  if (index < 0 || index >= num_nodes) {
+    fail(path, "index " + std::to_string(index) + " out of range [0, " +
+                   std::to_string(num_nodes - 1) + "]");
+  }
+}
+
+/// Node indices of a pin list: in range, each once, at least one if required.
+void requireNodeList(const std::vector<int>& indices, int num_nodes, const std::string& path,
+                     bool non_empty) {
+  if (non_empty && indices.empty()) fail(path, "must list at least one node");
+  std::map<int, size_t> seen;
+  for (size_t k = 0; k < indices.size(); ++k) {
+    const std::string item = element(path, k);
+    requireNode(indices[k], num_nodes, item);
+    const auto found = seen.find(indices[k]);
+    if (found != seen.end()) {
+      fail(item, "duplicate node " + std::to_string(indices[k]) + " (already " +
+                     element(path, found->second) + ")");
+    }
+    seen[indices[k]] = k;
+  }
+}
+
+void validateCloth(const Scene::Cloth& cloth) {
+  requireAtLeast(cloth.rows, 2, "cloth.rows");
+  requireAtLeast(cloth.cols, 1, "cloth.cols");
+  const long long nodes = static_cast<long long>(cloth.rows) * cloth.cols;
+  if (nodes > kMaxNodes) {
+    fail("cloth", "rows * cols = " + std::to_string(cloth.rows) + " * " +
+                      std::to_string(cloth.cols) + " = " + std::to_string(nodes) +
+                      " nodes exceeds the limit of " + std::to_string(kMaxNodes));
+  }
+  requirePositive(cloth.width, "cloth.width");
+  requirePositive(cloth.length, "cloth.length");
+  requireFiniteVec(cloth.origin, "cloth.origin");
+  requirePositive(cloth.mass, "cloth.mass");
+  for (const auto& [index, mass] : cloth.node_mass) {
+    const std::string path = "cloth.node_mass." + std::to_string(index);
+    requireNode(index, static_cast<int>(nodes), path);
+    requirePositive(mass, path);
+  }
+}
+
+void validateSprings(const Scene& scene) {
+  for (int t = 0; t < kNumSpringTypes; ++t) {
+    const SpringGroupParams& group = scene.springs[t];
+    const std::string path = std::string("springs.") + toString(static_cast<SpringType>(t));
+    const std::string stiffness_path = path + ".stiffness";
+    requireFinite(group.stiffness, stiffness_path);
+    if (group.stiffness < 0.0) {
+      fail(stiffness_path, "must be > 0, got " + formatNumber(group.stiffness) +
+                               " (0 turns the group off)");
+    }
+    if (group.enabled && group.stiffness == 0.0) {
+      fail(stiffness_path, "must be > 0 for an enabled group, got 0");
+    }
+    requireNonNegative(group.damping, path + ".damping");
+  }
+}
+
+void validateSolver(const Scene::Solver& solver) {
+  requirePositive(solver.dt, "solver.dt");
+  requireFraction(solver.tolerance, "solver.tolerance");
+  requireAtLeast(solver.max_iterations, 1, "solver.max_iterations");
+  requireFraction(solver.newton_tolerance, "solver.newton_tolerance");
+  requireAtLeast(solver.newton_max_iterations, 1, "solver.newton_max_iterations");
+  requireAtLeast(solver.max_halvings, 0, "solver.max_halvings");
+  if (solver.max_halvings > kMaxHalvings) {
+    fail("solver.max_halvings", "must be <= " + std::to_string(kMaxHalvings) + ", got " +
+                                    std::to_string(solver.max_halvings));
+  }
+}
+
+void validateInitial(const Scene::Initial& initial) {
+  requirePositive(initial.stretch, "initial.stretch");
+  requireNonNegative(initial.scatter, "initial.scatter");
+}
+
+void validateEvent(const SceneEvent& event, const Scene& scene, const std::string& path) {
+  const int num_nodes = scene.numNodes();
+  switch (event.kind) {
+    case SceneEvent::Kind::SetStiffness: {
+      const std::string action = path + ".set_stiffness";
+      requirePositive(event.stiffness, action + ".stiffness");
+      requireFinite(event.damping, action + ".damping");
+      if (event.damping < 0.0 && event.damping != -1.0) {
+        fail(action + ".damping", "must be >= 0 (or -1 to keep the current damping), got " +
+                                      formatNumber(event.damping));
+      }
+      if (!event.all_types && !scene.springs[static_cast<int>(event.spring_type)].enabled) {
+        fail(action + ".spring_type", std::string("the scene has no ") +
+                                          toString(event.spring_type) +
+                                          " springs (group absent or stiffness 0)");
+      }
+      break;
+    }
+    case SceneEvent::Kind::MovePin: {
+      const std::string action = path + ".move_pin";
+      // Whether the node is pinned at that time is checked when the event runs.
+      requireNode(event.index, num_nodes, action + ".index");
+      if (!event.position && !event.velocity) {
+        fail(action, "expected position, velocity (with duration) or both");
+      }
+      if (event.position) requireFiniteVec(*event.position, action + ".position");
+      requireNonNegative(event.duration, action + ".duration");
+      if (event.velocity) {
+        requireFiniteVec(*event.velocity, action + ".velocity");
+        requirePositive(event.duration, action + ".duration");
+      }
+      break;
+    }
+    case SceneEvent::Kind::Pin:
+      requireNodeList(event.indices, num_nodes, path + ".pin", true);
+      break;
+    case SceneEvent::Kind::Release:
+      if (!event.release_all) requireNodeList(event.indices, num_nodes, path + ".release", true);
+      break;
+  }
+}
+
+void validateEvents(const Scene& scene) {
+  for (size_t k = 0; k < scene.events.size(); ++k) {
+    const std::string path = element("events", k);
+    const SceneEvent& event = scene.events[k];
+    requireNonNegative(event.time, path + ".time");
+    if (k > 0 && event.time < scene.events[k - 1].time) {
+      fail(path + ".time", "events must be in time order, got " + formatNumber(event.time) +
+                               " after " + formatNumber(scene.events[k - 1].time));
+    }
+    validateEvent(event, scene, path);
+  }
+}
+
+}  // namespace
+
+Scene parseScene(const std::string& yaml_text, const std::vector<std::string>& overrides) {
+  return parseWithSource(yaml_text, overrides, "");
+}
+
+Scene loadScene(const std::string& path, const std::vector<std::string>& overrides) {
+  std::ifstream file(path, std::ios::binary);
+  std::error_code error;
+  if (!file || std::filesystem::is_directory(path, error)) {
+    throw SceneError(path + ": cannot read file");
+  }
+  std::ostringstream text;
+  text << file.rdbuf();
+  if (file.bad()) throw SceneError(path + ": cannot read file");
+  return parseWithSource(text.str(), overrides, path);
+}
+
+void validateScene(const Scene& scene) {
+  validateCloth(scene.cloth);
+  validateSprings(scene);
+  requireFiniteVec(scene.gravity, "gravity");
+  requireNonNegative(scene.air_drag, "air_drag");
+  requireNodeList(scene.pins, scene.numNodes(), "pins", false);
+  validateSolver(scene.solver);
+  validateInitial(scene.initial);
+  validateEvents(scene);
+}
+
+}  // namespace cloth_sim

@@ -1,0 +1,438 @@
+#include "cloth_sim/simulation.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+#include <sstream>
+
+#include "cloth_sim/forces.hpp"
+
+namespace cloth_sim {
+
+namespace {
+
+std::string fmt(double value) {
+  std::ostringstream s;
+  s << value;
+  return s.str();
+}
+
+/// Checks a list of node indices: range and duplicates. `field` names it.
+Status checkIndices(const std::vector<int>& indices, int num_nodes, const std::string& field,
+                    bool allow_empty = false) {
+  if (indices.empty() && !allow_empty) return Status::error(field + ": empty list");
+  std::set<int> seen;
+  for (size_t k = 0; k < indices.size(); ++k) {
+    const std::string at = field + "[" + std::to_string(k) + "]";
+    if (indices[k] < 0 || indices[k] >= num_nodes) {
+      return Status::error(at + ": index " + std::to_string(indices[k]) + " out of range [0, " +
+                           std::to_string(num_nodes - 1) + "]");
+    }
+    if (!seen.insert(indices[k]).second) {
+      return Status::error(at + ": duplicate index " + std::to_string(indices[k]));
+    }
+  }
+  return Status::success();
+}
+
+bool finite(const Vec3& v) { return v.allFinite(); }
+
+}  // namespace
+
+Simulation::Simulation(const Scene& scene) : scene_(scene), stepper_(scene.solver) {
+  validateScene(scene_);
+  std::stable_sort(scene_.events.begin(), scene_.events.end(),
+                   [](const SceneEvent& a, const SceneEvent& b) { return a.time < b.time; });
+  reset();
+}
+
+void Simulation::reset() {
+  model_ = buildModel(scene_);
+  x_ = initialPositions(scene_, model_.rest_positions);
+  v_.setZero(x_.size());
+  x_prev_.resize(0);
+  v_prev_.resize(0);
+  has_prev_ = false;
+  h_prev_ = 0.0;
+  t_ = 0.0;
+  step_count_ = 0;
+  next_event_ = 0;
+  work_in_total_ = 0.0;
+  last_stats_ = StepStats();
+  last_stats_.energy = energy();
+  last_stats_.max_strain = maxStrain();
+  stepper_ = Stepper(scene_.solver);
+  pins_.clear();
+  for (int p : scene_.pins) pins_[p] = PinTarget{position(p), Vec3::Zero(), 0.0};
+  size_ = std::hypot(scene_.cloth.cols > 1 ? scene_.cloth.width : 0.0, scene_.cloth.length);
+}
+
+std::vector<int> Simulation::pinnedNodes() const {
+  std::vector<int> nodes;
+  nodes.reserve(pins_.size());
+  for (const auto& entry : pins_) nodes.push_back(entry.first);
+  return nodes;
+}
+
+// ------------------------------------------------------------ stepping ----
+
+StepStats Simulation::step() { return step(scene_.solver.dt); }
+
+StepStats Simulation::step(double h) {
+  if (!(h > 0.0) || !std::isfinite(h)) {
+    StepStats bad;
+    bad.ok = false;
+    bad.failure = "step: h must be > 0 and finite, got " + fmt(h);
+    return bad;
+  }
+  applyDueEvents();
+  // Checkpoint, so a step that fails even after recovery changes nothing.
+  const VecX x0 = x_, v0 = v_, xp = x_prev_, vp = v_prev_;
+  const bool had_prev = has_prev_;
+  const double t0 = t_, hp = h_prev_, w0 = work_in_total_;
+  const auto pins0 = pins_;
+
+  StepStats stats = stepWithRecovery(h, 0);
+  if (!stats.ok) {
+    x_ = x0;
+    v_ = v0;
+    x_prev_ = xp;
+    v_prev_ = vp;
+    has_prev_ = had_prev;
+    t_ = t0;
+    h_prev_ = hp;
+    work_in_total_ = w0;
+    pins_ = pins0;
+  } else {
+    ++step_count_;
+  }
+  stats.energy = energy();
+  stats.max_strain = maxStrain();
+  stats.finite = x_.allFinite() && v_.allFinite();
+  last_stats_ = stats;
+  return stats;
+}
+
+double Simulation::energyScale() const {
+  double weight = 0.0;
+  if (model_.has_gravity) {
+    for (double m : model_.mass) weight += m;
+    weight *= model_.gravity.norm() * std::max(size_, 1e-3);
+  }
+  return kineticEnergy() + elasticEnergy() + weight + 1e-12;
+}
+
+StepStats Simulation::attempt(double h, bool reject_unconverged) {
+  const VecX x0 = x_, v0 = v_;
+  const bool check_energy = scene_.solver.recovery;
+  const double e0 = check_energy ? energy() : 0.0;
+  const double scale = check_energy ? energyScale() : 0.0;
+
+  pin_ends_.nodes.clear();
+  pin_ends_.targets.clear();
+  bool pins_move = false;
+  for (const auto& [node, pin] : pins_) {
+    const double drift = std::clamp(pin.velocity_until - t_, 0.0, h);
+    const Vec3 end = pin.position + drift * pin.velocity;
+    pin_ends_.nodes.push_back(node);
+    pin_ends_.targets.push_back(end);
+    pins_move = pins_move || end != x0.segment<3>(3 * node);
+  }
+  History history;
+  if (has_prev_) history = History{&x_prev_, &v_prev_, h_prev_};
+
+  StepStats stats = stepper_.step(model_, h, pin_ends_, history, x_, v_);
+
+  // Work the pins did: reaction at the end of the step times their travel.
+  double work = 0.0;
+  if (stats.ok && pins_move) {
+    VecX f;
+    computeForces(model_, x_, v_, f);
+    for (int node : pin_ends_.nodes) {
+      const Vec3 reaction = model_.mass[node] * (v_.segment<3>(3 * node) - v0.segment<3>(3 * node)) / h -
+                            f.segment<3>(3 * node);
+      work += reaction.dot(x_.segment<3>(3 * node) - x0.segment<3>(3 * node));
+    }
+  }
+  if (stats.ok && reject_unconverged && !stats.linear_converged) {
+    stats.ok = false;
+    stats.failure = "linear solver did not reach tolerance (relative residual " +
+                    fmt(stats.residual) + ")";
+  }
+  if (stats.ok && check_energy) {
+    const double gain = energy() - e0 - std::max(work, 0.0);
+    if (!(gain <= 0.5 * scale)) {
+      stats.ok = false;
+      stats.failure = "energy jump of " + fmt(gain) + " J beyond the work input";
+    }
+  }
+  if (!stats.ok) {
+    x_ = x0;
+    v_ = v0;
+    return stats;
+  }
+  x_prev_ = x0;
+  v_prev_ = v0;
+  h_prev_ = h;
+  has_prev_ = true;
+  t_ += h;
+  for (size_t k = 0; k < pin_ends_.nodes.size(); ++k) {
+    PinTarget& pin = pins_[pin_ends_.nodes[k]];
+    pin.position = pin_ends_.targets[k];
+    if (t_ >= pin.velocity_until) pin.velocity.setZero();
+  }
+  stats.work_in = work;
+  work_in_total_ += work;
+  return stats;
+}
+
+void Simulation::accumulate(const StepStats& part, StepStats* total) const {
+  total->cg_iterations += part.cg_iterations;
+  total->newton_iterations += part.newton_iterations;
+  total->residual = std::max(total->residual, part.residual);
+  total->newton_residual = std::max(total->newton_residual, part.newton_residual);
+  total->linear_converged = total->linear_converged && part.linear_converged;
+  total->wall_time_s += part.wall_time_s;
+  total->assembly_s += part.assembly_s;
+  total->solve_s += part.solve_s;
+  total->work_in += part.work_in;
+  total->substeps += part.substeps;
+  total->rejected += part.rejected;
+  total->halvings = std::max(total->halvings, part.halvings);
+  total->ok = total->ok && part.ok;
+  if (!part.failure.empty()) total->failure = part.failure;
+}
+
+StepStats Simulation::stepWithRecovery(double h, int depth) {
+  const bool can_split = scene_.solver.recovery && depth < scene_.solver.max_halvings;
+  StepStats first = attempt(h, can_split);
+  if (first.ok || !can_split) {
+    if (!first.ok && depth > 0) {
+      first.failure += " (after " + std::to_string(depth) + " step halvings)";
+    } else if (first.ok && !first.linear_converged) {
+      first.failure = "linear solver did not reach tolerance (relative residual " +
+                      fmt(first.residual) + ")";
+    }
+    return first;
+  }
+  StepStats total;
+  total.substeps = 0;
+  total.rejected = 1;
+  total.halvings = depth + 1;
+  total.wall_time_s = first.wall_time_s;
+  total.cg_iterations = first.cg_iterations;
+  for (int half = 0; half < 2; ++half) {
+    const StepStats part = stepWithRecovery(0.5 * h, depth + 1);
+    accumulate(part, &total);
+    if (!part.ok) return total;
+  }
+  total.failure = "recovered from: " + first.failure;
+  return total;
+}
+
+// ------------------------------------------------------------ events ----
+
+void Simulation::applyDueEvents() {
+  while (next_event_ < scene_.events.size() &&
+         scene_.events[next_event_].time <= t_ + 1e-9 * scene_.solver.dt) {
+    applyEvent(scene_.events[next_event_]);
+    ++next_event_;
+  }
+}
+
+Status Simulation::applyEvent(const SceneEvent& e) {
+  switch (e.kind) {
+    case SceneEvent::Kind::SetStiffness:
+      return setStiffness(e.all_types ? "all" : toString(e.spring_type), e.stiffness, e.damping);
+    case SceneEvent::Kind::MovePin: {
+      const Vec3 from = isPinned(e.index) ? pins_.at(e.index).position : position(e.index);
+      return movePin(e.index, e.position.value_or(from), e.velocity.value_or(Vec3::Zero()),
+                     e.duration);
+    }
+    case SceneEvent::Kind::Pin: {
+      std::vector<int> fresh;
+      for (int i : e.indices) {
+        if (!isPinned(i)) fresh.push_back(i);
+      }
+      return fresh.empty() ? Status::success() : pin(fresh);
+    }
+    case SceneEvent::Kind::Release:
+      if (e.release_all) {
+        releaseAll();
+        return Status::success();
+      } else {
+        std::vector<int> pinned;
+        for (int i : e.indices) {
+          if (isPinned(i)) pinned.push_back(i);
+        }
+        return pinned.empty() ? Status::success() : release(pinned);
+      }
+  }
+  return Status::success();
+}
+
+// ------------------------------------------------------ runtime calls ----
+
+Status Simulation::pin(const std::vector<int>& indices, const std::vector<Vec3>& targets) {
+  Status ok = checkIndices(indices, numNodes(), "indices");
+  if (!ok) return ok;
+  if (!targets.empty() && targets.size() != indices.size()) {
+    return Status::error("positions: " + std::to_string(targets.size()) + " given for " +
+                         std::to_string(indices.size()) + " indices");
+  }
+  for (size_t k = 0; k < targets.size(); ++k) {
+    if (!finite(targets[k])) {
+      return Status::error("positions[" + std::to_string(k) + "]: must be finite");
+    }
+  }
+  for (size_t k = 0; k < indices.size(); ++k) {
+    const int i = indices[k];
+    pins_[i] = PinTarget{targets.empty() ? position(i) : targets[k], Vec3::Zero(), 0.0};
+  }
+  return Status::success("pinned " + std::to_string(indices.size()) + " node(s)");
+}
+
+Status Simulation::movePin(int index, const Vec3& position, const Vec3& velocity,
+                           double duration) {
+  Status ok = checkIndices({index}, numNodes(), "index", false);
+  if (!ok) return Status::error("index: " + std::to_string(index) + " out of range [0, " +
+                                std::to_string(numNodes() - 1) + "]");
+  if (!finite(position)) return Status::error("position: must be finite");
+  if (!finite(velocity)) return Status::error("velocity: must be finite");
+  if (!(duration >= 0.0) || !std::isfinite(duration)) {
+    return Status::error("duration: must be >= 0 and finite, got " + fmt(duration));
+  }
+  pins_[index] = PinTarget{position, velocity, t_ + duration};
+  return Status::success();
+}
+
+Status Simulation::drivePin(int index, const Vec3& velocity, double duration) {
+  if (index < 0 || index >= numNodes()) {
+    return Status::error("index: " + std::to_string(index) + " out of range [0, " +
+                         std::to_string(numNodes() - 1) + "]");
+  }
+  const Vec3 from = isPinned(index) ? pins_.at(index).position : position(index);
+  return movePin(index, from, velocity, duration);
+}
+
+Status Simulation::release(const std::vector<int>& indices) {
+  Status ok = checkIndices(indices, numNodes(), "indices");
+  if (!ok) return ok;
+  for (size_t k = 0; k < indices.size(); ++k) {
+    if (!isPinned(indices[k])) {
+      return Status::error("indices[" + std::to_string(k) + "]: node " +
+                           std::to_string(indices[k]) + " is not pinned");
+    }
+  }
+  for (int i : indices) pins_.erase(i);
+  return Status::success("released " + std::to_string(indices.size()) + " node(s)");
+}
+
+void Simulation::releaseAll() { pins_.clear(); }
+
+Status Simulation::setStiffness(const std::string& spring_type, double stiffness,
+                                double damping) {
+  std::vector<SpringType> types;
+  if (spring_type == "all") {
+    for (int t = 0; t < kNumSpringTypes; ++t) {
+      if (model_.groups[t].present) types.push_back(static_cast<SpringType>(t));
+    }
+    if (types.empty()) return Status::error("spring_type: the scene has no springs");
+  } else {
+    SpringType type;
+    if (!parseSpringType(spring_type, &type)) {
+      return Status::error("spring_type: unknown '" + spring_type +
+                           "' (expected stretch, shear, bend or all)");
+    }
+    if (!model_.groups[static_cast<int>(type)].present) {
+      return Status::error("spring_type: group '" + spring_type +
+                           "' is not in the scene (the scene decides what is modelled)");
+    }
+    types.push_back(type);
+  }
+  if (!(stiffness > 0.0) || !std::isfinite(stiffness)) {
+    return Status::error("stiffness: must be > 0 and finite, got " + fmt(stiffness));
+  }
+  if (damping != -1.0 && (!(damping >= 0.0) || !std::isfinite(damping))) {
+    return Status::error("damping: must be >= 0 and finite (or -1 to keep), got " + fmt(damping));
+  }
+  for (SpringType type : types) {
+    SpringGroup& g = model_.groups[static_cast<int>(type)];
+    // Changing k changes the stored elastic energy: that is work done on the cloth.
+    double stretch_sq = 0.0;
+    for (int s = g.begin; s < g.end; ++s) {
+      const Spring& sp = model_.springs[s];
+      const double e = (position(sp.j) - position(sp.i)).norm() - sp.rest_length;
+      stretch_sq += e * e;
+    }
+    work_in_total_ += 0.5 * (stiffness - g.stiffness) * stretch_sq;
+    g.stiffness = stiffness;
+    if (damping != -1.0) g.damping = damping;
+  }
+  return Status::success("set " + spring_type + " stiffness to " + fmt(stiffness));
+}
+
+// --------------------------------------------------------- measurements ----
+
+double Simulation::kineticEnergy() const { return cloth_sim::kineticEnergy(model_, v_); }
+double Simulation::elasticEnergy() const { return cloth_sim::elasticEnergy(model_, x_); }
+double Simulation::potentialEnergy() const { return gravityEnergy(model_, x_); }
+double Simulation::maxStrain() const { return cloth_sim::maxStrain(model_, x_); }
+
+std::vector<double> Simulation::nodeStrain() const {
+  std::vector<double> strain(numNodes(), 0.0);
+  for (const Spring& s : model_.springs) {
+    const double e = (position(s.j) - position(s.i)).norm() / s.rest_length - 1.0;
+    strain[s.i] = std::max(strain[s.i], e);
+    strain[s.j] = std::max(strain[s.j], e);
+  }
+  return strain;
+}
+
+bool Simulation::solveStatic(VecX* x_out, double rel_tol, int max_iterations) const {
+  // Pseudo-time continuation: (M + h^2 K) dx = h^2 f, with h grown while the
+  // force residual falls and cut when it does not (a damped Newton).
+  std::vector<char> free(numNodes(), 1);
+  for (const auto& entry : pins_) free[entry.first] = 0;
+  VecX x = x_;
+  for (const auto& [node, pin] : pins_) x.segment<3>(3 * node) = pin.position;
+  const VecX zero_v = VecX::Zero(x.size());
+  SystemMatrix A;
+  CgWorkspace ws;
+  VecX f, rhs, dx = VecX::Zero(x.size()), x_trial, f_trial;
+  auto freeNorm = [&](const VecX& v) {
+    double s = 0.0;
+    for (int i = 0; i < numNodes(); ++i) {
+      if (free[i]) s += v.segment<3>(3 * i).squaredNorm();
+    }
+    return std::sqrt(s);
+  };
+  computeForces(model_, x, zero_v, f);
+  double weight = 0.0;
+  for (double m : model_.mass) weight += m * model_.gravity.norm();
+  const double scale = std::max(weight, freeNorm(f)) + 1e-300;
+  double h = 1e2;
+  double r = freeNorm(f);
+  for (int it = 0; it < max_iterations && r > rel_tol * scale; ++it) {
+    assembleSystem(model_, x, zero_v, 0.0, h * h, scene_.solver.project_compression, A, f);
+    rhs = h * h * f;
+    dx.setZero();
+    conjugateGradient(A, model_.springs, free, rhs, dx, Preconditioner::BlockJacobi, 1e-13,
+                      20 * numNodes() + 100, ws);
+    x_trial = x + dx;
+    computeForces(model_, x_trial, zero_v, f_trial);
+    const double r_trial = freeNorm(f_trial);
+    if (r_trial < r) {
+      x = x_trial;
+      r = r_trial;
+      h = std::min(h * 4.0, 1e8);
+    } else {
+      h *= 0.25;
+      if (h < 1e-12) break;
+    }
+  }
+  *x_out = x;
+  return r <= rel_tol * scale;
+}
+
+}  // namespace cloth_sim

@@ -1,0 +1,203 @@
+#include "cloth_sim/stepper.hpp"
+
+#include <chrono>
+#include <cmath>
+
+#include "cloth_sim/forces.hpp"
+
+namespace cloth_sim {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double secondsSince(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+void zeroPinned(const std::vector<char>& free, VecX& v) {
+  for (size_t i = 0; i < free.size(); ++i) {
+    if (!free[i]) v.segment<3>(3 * i).setZero();
+  }
+}
+
+}  // namespace
+
+void Stepper::setPins(const Model& model, const PinnedEnds& pins) {
+  free_.assign(model.numNodes(), 1);
+  for (int node : pins.nodes) free_[node] = 0;
+  pins_ = &pins;
+}
+
+StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
+                        const History& history, VecX& x, VecX& v) {
+  const auto start = Clock::now();
+  setPins(model, pins);
+  StepStats stats;
+  switch (settings_.method) {
+    case Method::ImplicitEuler:
+      stats = implicitEuler(model, h, x, v);
+      break;
+    case Method::Newton:
+      stats = newtonSolve(model, h, 1.0, x, v, settings_.newton_max_iterations, x, v);
+      break;
+    case Method::Bdf2:
+      if (history.x_prev && history.v_prev && history.h_prev == h) {
+        ax_ = (4.0 * x - *history.x_prev) / 3.0;
+        av_ = (4.0 * v - *history.v_prev) / 3.0;
+        stats = newtonSolve(model, h, 2.0 / 3.0, ax_, av_, settings_.newton_max_iterations, x, v);
+      } else {  // first step, or the step size changed: one backward Euler step
+        stats = newtonSolve(model, h, 1.0, x, v, settings_.newton_max_iterations, x, v);
+      }
+      break;
+    case Method::SymplecticEuler:
+      stats = symplecticEuler(model, h, x, v);
+      break;
+  }
+  stats.finite = x.allFinite() && v.allFinite();
+  if (!stats.finite) {
+    stats.ok = false;
+    stats.failure = "non-finite position or velocity";
+  }
+  stats.wall_time_s = secondsSince(start);
+  return stats;
+}
+
+StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v) {
+  StepStats stats;
+  const int n = model.numNodes();
+  auto t0 = Clock::now();
+  assembleSystem(model, x, v, h, h * h, settings_.project_compression, A_, f_, &v, &dfdx_v_);
+  rhs_ = h * (f_ + h * dfdx_v_);
+  // Pinned velocity changes are prescribed: move their columns to the right side.
+  pinned_dv_.setZero(3 * n);
+  bool pins_move = false;
+  for (size_t k = 0; k < pins_->nodes.size(); ++k) {
+    const int p = pins_->nodes[k];
+    const Vec3 dv = (pins_->targets[k] - x.segment<3>(3 * p)) / h - v.segment<3>(3 * p);
+    pinned_dv_.segment<3>(3 * p) = dv;
+    pins_move = pins_move || dv.squaredNorm() > 0.0;
+  }
+  if (pins_move) {
+    A_.multiply(model.springs, free_, pinned_dv_, g_);
+    rhs_ -= g_;
+  }
+  zeroPinned(free_, rhs_);
+  stats.assembly_s = secondsSince(t0);
+
+  t0 = Clock::now();
+  if (dv_.size() != 3 * n) dv_.setZero(3 * n);  // else: warm start from the last step
+  const CgResult cg = conjugateGradient(A_, model.springs, free_, rhs_, dv_,
+                                        settings_.preconditioner, settings_.tolerance,
+                                        settings_.max_iterations, cg_);
+  stats.solve_s = secondsSince(t0);
+  stats.cg_iterations = cg.iterations;
+  stats.residual = cg.relative_residual;
+  stats.linear_converged = cg.converged;
+  stats.newton_iterations = 1;
+
+  v += dv_ + pinned_dv_;
+  x += h * v;
+  for (size_t k = 0; k < pins_->nodes.size(); ++k) {
+    x.segment<3>(3 * pins_->nodes[k]) = pins_->targets[k];  // exactly on target
+  }
+  return stats;
+}
+
+double Stepper::residual(const Model& model, double bh, const VecX& ax, const VecX& av,
+                         const VecX& v1, VecX& x1, VecX& g) {
+  x1 = ax + bh * v1;
+  computeForces(model, x1, v1, f_);
+  g.resize(v1.size());
+  for (int i = 0; i < model.numNodes(); ++i) {
+    g.segment<3>(3 * i) = model.mass[i] * (v1.segment<3>(3 * i) - av.segment<3>(3 * i)) -
+                          bh * f_.segment<3>(3 * i);
+  }
+  zeroPinned(free_, g);
+  return g.norm();
+}
+
+StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const VecX& ax_in,
+                               const VecX& av_in, int max_iterations, VecX& x, VecX& v) {
+  StepStats stats;
+  const double bh = beta * h;
+  // ax/av may alias x/v: keep copies, x and v are the outputs.
+  if (&ax_in != &ax_) ax_ = ax_in;
+  if (&av_in != &av_) av_ = av_in;
+  v_trial_ = av_;
+  for (size_t k = 0; k < pins_->nodes.size(); ++k) {
+    const int p = pins_->nodes[k];
+    v_trial_.segment<3>(3 * p) = (pins_->targets[k] - ax_.segment<3>(3 * p)) / bh;
+  }
+  VecX& v1 = v;
+  v1 = v_trial_;
+  auto t0 = Clock::now();
+  const double g0 = residual(model, bh, ax_, av_, v1, x, g_);
+  double g_norm = g0;
+  stats.assembly_s += secondsSince(t0);
+  const double target = settings_.newton_tolerance * g0;
+  stats.linear_converged = true;
+  int it = 0;
+  while (g_norm > target && it < max_iterations && std::isfinite(g_norm)) {
+    t0 = Clock::now();
+    assembleSystem(model, x, v1, bh, bh * bh, settings_.project_compression, A_, f_);
+    stats.assembly_s += secondsSince(t0);
+    t0 = Clock::now();
+    rhs_ = -g_;
+    delta_.setZero(v1.size());
+    const CgResult cg = conjugateGradient(A_, model.springs, free_, rhs_, delta_,
+                                          settings_.preconditioner, settings_.tolerance,
+                                          settings_.max_iterations, cg_);
+    stats.solve_s += secondsSince(t0);
+    stats.cg_iterations += cg.iterations;
+    stats.residual = std::max(stats.residual, cg.relative_residual);
+    stats.linear_converged = stats.linear_converged && cg.converged;
+    ++it;
+
+    // Backtracking on ||g||: keep the best of at most 10 halvings.
+    t0 = Clock::now();
+    double alpha = 1.0, best_alpha = 1.0, best_norm = INFINITY;
+    for (int ls = 0; ls < 10; ++ls, alpha *= 0.5) {
+      v_trial_ = v1 + alpha * delta_;
+      const double trial = residual(model, bh, ax_, av_, v_trial_, x_trial_, g_trial_);
+      if (trial < best_norm) {
+        best_norm = trial;
+        best_alpha = alpha;
+      }
+      if (trial <= (1.0 - 1e-4 * alpha) * g_norm) break;
+    }
+    v1 += best_alpha * delta_;
+    g_norm = residual(model, bh, ax_, av_, v1, x, g_);
+    stats.assembly_s += secondsSince(t0);
+  }
+  stats.newton_iterations = it;
+  stats.newton_residual = g0 > 0.0 ? g_norm / g0 : 0.0;
+  for (size_t k = 0; k < pins_->nodes.size(); ++k) {
+    x.segment<3>(3 * pins_->nodes[k]) = pins_->targets[k];  // exactly on target
+  }
+  if (!(g_norm <= g0) && g0 > 0.0) {
+    stats.ok = false;
+    stats.failure = "newton residual grew";
+  }
+  return stats;
+}
+
+StepStats Stepper::symplecticEuler(const Model& model, double h, VecX& x, VecX& v) {
+  StepStats stats;
+  auto t0 = Clock::now();
+  computeForces(model, x, v, f_);
+  for (int i = 0; i < model.numNodes(); ++i) {
+    if (free_[i]) v.segment<3>(3 * i) += (h / model.mass[i]) * f_.segment<3>(3 * i);
+  }
+  for (size_t k = 0; k < pins_->nodes.size(); ++k) {
+    const int p = pins_->nodes[k];
+    v.segment<3>(3 * p) = (pins_->targets[k] - x.segment<3>(3 * p)) / h;
+  }
+  x += h * v;
+  for (size_t k = 0; k < pins_->nodes.size(); ++k) {
+    x.segment<3>(3 * pins_->nodes[k]) = pins_->targets[k];
+  }
+  stats.assembly_s = secondsSince(t0);
+  return stats;
+}
+
+}  // namespace cloth_sim

@@ -1,0 +1,63 @@
+// Messages built from core data. Free functions, no node state: the node and
+// the tests use the same code to know what a message must contain.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <std_msgs/ColorRGBA.h>
+#include <visualization_msgs/Marker.h>
+
+#include "cloth_sim/ClothState.h"
+#include "cloth_sim/model.hpp"
+#include "cloth_sim/simulation.hpp"
+#include "cloth_sim/step_stats.hpp"
+
+namespace cloth_sim_ros {
+
+/// What one timer tick did: the StepStats of its solver steps, combined.
+struct TickStats {
+  int steps = 0;            ///< solver steps taken (sub-steps of recovery included)
+  double dt = 0.0;          ///< step size the tick was divided into, s
+  int cg_iterations = 0;    ///< summed
+  double residual = 0.0;    ///< max
+  int newton_iterations = 0;
+  double wall_time_s = 0.0;
+  double energy = 0.0;      ///< after the last step
+  double max_strain = 0.0;  ///< after the last step
+  int rejected = 0;         ///< attempts rolled back by recovery
+  bool ok = true;           ///< every step succeeded and stayed finite
+  std::string failure;      ///< first failure (or what recovery fixed)
+
+  /// Adds one Simulation::step result.
+  void add(const cloth_sim::StepStats& s);
+};
+
+/// A TRIANGLE_LIST marker with everything but points (and stamp) set:
+/// ns, id 0, identity pose, scale 1, one colour.
+visualization_msgs::Marker triangleMarker(const std::string& frame_id, const std::string& ns,
+                                          const std_msgs::ColorRGBA& color);
+
+/// Writes the model's triangles, three points each, into marker->points
+/// (6 (rows-1)(cols-1) points; resized only when the count differs).
+void setTrianglePoints(const cloth_sim::Model& model, const cloth_sim::VecX& positions,
+                       visualization_msgs::Marker* marker);
+
+/// Strain colour: blue at rest length (or compressed), red at 10% stretch or more.
+std_msgs::ColorRGBA strainColor(double strain);
+/// Strain at which strainColor is fully red.
+constexpr double kFullStrainColor = 0.10;
+
+/// One colour per triangle vertex from per-node strain.
+void setStrainColors(const cloth_sim::Model& model, const std::vector<double>& node_strain,
+                     visualization_msgs::Marker* marker);
+
+/// Fills a ClothState's cloth part: size, positions, velocities, pins, time.
+void fillClothState(const cloth_sim::Simulation& sim, cloth_sim::ClothState* msg);
+/// Fills a ClothState's statistics part from a tick.
+void fillTickStats(const TickStats& tick, cloth_sim::ClothState* msg);
+
+/// True if every coordinate is finite.
+bool allFinite(const cloth_sim::VecX& values);
+
+}  // namespace cloth_sim_ros

@@ -1,0 +1,381 @@
+#include "cloth_node.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <set>
+
+namespace cloth_sim_ros {
+namespace {
+
+using cloth_sim::Status;
+using cloth_sim::Vec3;
+
+std::string format(const char* fmt, double value) {
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), fmt, value);
+  return buf;
+}
+
+std::string formatPoint(const Vec3& p) {
+  return "[" + format("%g", p.x()) + ", " + format("%g", p.y()) + ", " + format("%g", p.z()) +
+         "]";
+}
+
+/// Range and duplicate check of request indices (the tf path needs valid
+/// indices before the core sees them).
+Status checkIndices(const std::vector<long>& indices, int num_nodes, std::vector<int>* out) {
+  std::set<long> seen;
+  out->clear();
+  for (size_t k = 0; k < indices.size(); ++k) {
+    const std::string field = "indices[" + std::to_string(k) + "]";
+    if (indices[k] < 0 || indices[k] >= num_nodes) {
+      return Status::error(field + ": node " + std::to_string(indices[k]) +
+                           " out of range, the cloth has " + std::to_string(num_nodes) +
+                           " nodes (0.." + std::to_string(num_nodes - 1) + ")");
+    }
+    if (!seen.insert(indices[k]).second) {
+      return Status::error(field + ": node " + std::to_string(indices[k]) + " is listed twice");
+    }
+    out->push_back(static_cast<int>(indices[k]));
+  }
+  return Status::success();
+}
+
+std::vector<long> toLong(const std::vector<uint32_t>& indices) {
+  return std::vector<long>(indices.begin(), indices.end());
+}
+
+}  // namespace
+
+int ClothNode::stepsPerTick(double tick_s, double dt) {
+  // The small slack keeps an exact fit (1/50 s over 0.004 s) from rounding up.
+  return std::max(1, static_cast<int>(std::ceil(tick_s / dt - 1e-9)));
+}
+
+ClothNode::ClothNode(ros::NodeHandle nh, ros::NodeHandle private_nh, const NodeParams& params,
+                     const cloth_sim::Scene& scene)
+    : params_(params),
+      sim_(scene),
+      tick_s_(1.0 / params.rate),
+      steps_per_tick_(stepsPerTick(tick_s_, scene.solver.dt)),
+      step_h_(tick_s_ / steps_per_tick_),
+      tf_listener_(tf_buffer_, nh),
+      frame_pins_(tf_buffer_, params.frame_id, params.tf_timeout),
+      updater_(nh, private_nh) {
+  // Start-up tf pins need their frames: wait for each, then attach.
+  for (size_t k = 0; k < params_.tf_pins.size(); ++k) {
+    const TfPinParam& pin = params_.tf_pins[k];
+    std::string error;
+    if (pin.frame_id != params_.frame_id &&
+        !tf_buffer_.canTransform(params_.frame_id, pin.frame_id, ros::Time(0),
+                                 ros::Duration(params_.tf_wait), &error)) {
+      throw ParamError("tf_pins[" + std::to_string(k) + "].frame_id: no transform from '" +
+                       pin.frame_id + "' to '" + params_.frame_id + "' within tf_wait " +
+                       format("%g", params_.tf_wait) + " s" +
+                       (error.empty() ? "" : " (" + error + ")"));
+    }
+  }
+  const Status status = applyTfPinParams();
+  if (!status) throw ParamError(status.message);
+
+  cloth_marker_ = triangleMarker(params_.frame_id, "cloth", params_.color);
+  std_msgs::ColorRGBA opaque;
+  opaque.r = opaque.g = opaque.b = opaque.a = 1.0f;  // per-vertex colours carry the strain
+  strain_marker_ = triangleMarker(params_.frame_id, "strain", opaque);
+  state_msg_.header.frame_id = params_.frame_id;
+
+  cloth_pub_ = private_nh.advertise<visualization_msgs::Marker>("cloth", 2);
+  if (params_.publish_strain) {
+    strain_pub_ = private_nh.advertise<visualization_msgs::Marker>("strain", 2);
+  }
+  state_pub_ = private_nh.advertise<cloth_sim::ClothState>("state", 2);
+  services_.push_back(private_nh.advertiseService("pin_nodes", &ClothNode::onPinNodes, this));
+  services_.push_back(
+      private_nh.advertiseService("release_nodes", &ClothNode::onReleaseNodes, this));
+  services_.push_back(
+      private_nh.advertiseService("set_stiffness", &ClothNode::onSetStiffness, this));
+  services_.push_back(private_nh.advertiseService("reset", &ClothNode::onReset, this));
+
+  updater_.setHardwareID("none");
+  updater_.add("simulation", this, &ClothNode::diagnose);
+  window_.start = ros::SteadyTime::now();
+
+  if (model().triangles.empty()) {
+    ROS_INFO("cloth has a single column: ~cloth and ~strain carry no triangles");
+  }
+  ROS_INFO("cloth %dx%d, %s, %g Hz: %d step(s) of %.6g s per tick in frame '%s'",
+           sim_.model().rows, sim_.model().cols, cloth_sim::toString(scene.solver.method),
+           params_.rate, steps_per_tick_, step_h_, params_.frame_id.c_str());
+
+  TickStats initial;
+  initial.dt = step_h_;
+  initial.energy = sim_.energy();
+  initial.max_strain = sim_.maxStrain();
+  publish(ros::Time::now(), initial);
+  last_tick_ = initial;
+  timer_ = nh.createSteadyTimer(ros::WallDuration(tick_s_), &ClothNode::onTick, this);
+}
+
+const cloth_sim::Model& ClothNode::model() const { return sim_.model(); }
+
+// ------------------------------------------------------------------ tick ----
+
+void ClothNode::onTick(const ros::SteadyTimerEvent& /*event*/) {
+  const ros::SteadyTime start = ros::SteadyTime::now();
+  const double sim_before = sim_.time();
+
+  for (const std::string& error : frame_pins_.update(&sim_, tick_s_)) {
+    ROS_WARN_THROTTLE(2.0, "tf pin: %s; its nodes hold their last position", error.c_str());
+  }
+
+  TickStats tick;
+  tick.dt = step_h_;
+  for (int k = 0; k < steps_per_tick_; ++k) {
+    tick.add(sim_.step(step_h_));
+    if (!tick.ok) break;  // the core rolled back; the next tick tries again
+  }
+  publish(ros::Time::now(), tick);
+
+  const double busy = (ros::SteadyTime::now() - start).toSec();
+  const bool overrun = busy > tick_s_;
+  window_.ticks += 1;
+  window_.overruns += overrun ? 1 : 0;
+  overruns_total_ += overrun ? 1 : 0;
+  window_.busy_s += busy;
+  window_.busy_max_s = std::max(window_.busy_max_s, busy);
+  window_.step_s += tick.wall_time_s;
+  window_.cg_iterations += tick.cg_iterations;
+  window_.cg_max = std::max(window_.cg_max, tick.cg_iterations);
+  window_.residual_max = std::max(window_.residual_max, tick.residual);
+  window_.rejected += tick.rejected;
+  window_.sim_time_s += sim_.time() - sim_before;
+  if (!tick.ok) {
+    window_.failures += 1;
+    failures_total_ += 1;
+    ROS_ERROR_THROTTLE(2.0, "solver step failed: %s; publishing the last good state",
+                       tick.failure.c_str());
+  }
+  if (!tick.failure.empty()) window_.failure = tick.failure;
+  last_tick_ = tick;
+  updater_.update();
+}
+
+void ClothNode::publish(const ros::Time& stamp, TickStats tick) {
+  const bool finite = sim_.positions().allFinite() && sim_.velocities().allFinite();
+  if (finite) {
+    setTrianglePoints(model(), sim_.positions(), &cloth_marker_);
+    fillClothState(sim_, &state_msg_);
+  } else if (tick.ok) {
+    tick.ok = false;  // never claim success for a state we do not show
+    tick.failure = "state became non-finite";
+  }
+  fillTickStats(tick, &state_msg_);
+  cloth_marker_.header.stamp = stamp;
+  state_msg_.header.stamp = stamp;
+  cloth_pub_.publish(cloth_marker_);
+
+  if (params_.publish_strain && strain_pub_.getNumSubscribers() > 0) {
+    if (finite) {
+      setTrianglePoints(model(), sim_.positions(), &strain_marker_);
+      setStrainColors(model(), sim_.nodeStrain(), &strain_marker_);
+      strain_valid_ = true;
+    }
+    if (strain_valid_) {
+      strain_marker_.header.stamp = stamp;
+      strain_pub_.publish(strain_marker_);
+    }
+  } else {
+    strain_valid_ = false;  // stale once nobody listens
+  }
+  state_pub_.publish(state_msg_);
+}
+
+// -------------------------------------------------------------- services ----
+
+Status ClothNode::pinNodes(const std::vector<long>& indices, const std::vector<Vec3>& positions,
+                           const std::string& frame) {
+  if (indices.empty()) return Status::error("indices: must not be empty");
+  if (!positions.empty() && positions.size() != indices.size()) {
+    return Status::error("positions: expected none or one per index (" +
+                         std::to_string(indices.size()) + "), got " +
+                         std::to_string(positions.size()));
+  }
+  for (size_t k = 0; k < positions.size(); ++k) {
+    if (!positions[k].allFinite()) {
+      return Status::error("positions[" + std::to_string(k) + "]: must be finite, got " +
+                           formatPoint(positions[k]));
+    }
+  }
+  std::vector<int> nodes;
+  const Status valid = checkIndices(indices, sim_.numNodes(), &nodes);
+  if (!valid) return valid;
+
+  const bool attach = !frame.empty() && frame != params_.frame_id;
+  std::vector<Vec3> targets = positions;  // fixed frame; empty: where they are
+  std::vector<Vec3> offsets;
+  if (attach) {
+    Eigen::Isometry3d transform;
+    std::string error;
+    if (!frame_pins_.lookup(frame, &transform, &error)) return Status::error(error);
+    for (size_t k = 0; k < nodes.size(); ++k) {
+      if (positions.empty()) {
+        offsets.push_back(transform.inverse() * sim_.position(nodes[k]));
+      } else {
+        offsets.push_back(positions[k]);
+        targets[k] = transform * positions[k];
+      }
+    }
+  }
+  const Status pinned = sim_.pin(nodes, targets);
+  if (!pinned) return pinned;
+  for (size_t k = 0; k < nodes.size(); ++k) {
+    if (attach) {
+      frame_pins_.attach(nodes[k], frame, offsets[k], sim_.pins().at(nodes[k]).position);
+    } else {
+      frame_pins_.detach(nodes[k]);
+    }
+  }
+  return Status::success("pinned " + std::to_string(nodes.size()) + " node(s)" +
+                         (attach ? " to frame '" + frame + "'" : ""));
+}
+
+Status ClothNode::applyTfPinParams() {
+  for (size_t k = 0; k < params_.tf_pins.size(); ++k) {
+    const TfPinParam& pin = params_.tf_pins[k];
+    const Status status =
+        pinNodes(std::vector<long>(pin.indices.begin(), pin.indices.end()), pin.positions,
+                 pin.frame_id);
+    if (!status) return Status::error("tf_pins[" + std::to_string(k) + "]." + status.message);
+  }
+  return Status::success();
+}
+
+bool ClothNode::onPinNodes(cloth_sim::PinNodes::Request& req,
+                           cloth_sim::PinNodes::Response& res) {
+  std::vector<Vec3> positions;
+  for (const geometry_msgs::Point& p : req.positions) positions.emplace_back(p.x, p.y, p.z);
+  const Status status = pinNodes(toLong(req.indices), positions, req.frame_id);
+  res.success = status.ok;
+  res.message = status.message;
+  if (!status) ROS_WARN("pin_nodes rejected: %s", status.message.c_str());
+  return true;
+}
+
+bool ClothNode::onReleaseNodes(cloth_sim::ReleaseNodes::Request& req,
+                               cloth_sim::ReleaseNodes::Response& res) {
+  Status status;
+  if (req.all) {
+    if (!req.indices.empty()) {
+      status = Status::error("indices: must be empty when all is true, got " +
+                             std::to_string(req.indices.size()) + " index(es)");
+    } else {
+      const size_t count = sim_.pinnedNodes().size();
+      sim_.releaseAll();
+      frame_pins_.clear();
+      status = Status::success("released all " + std::to_string(count) + " pinned node(s)");
+    }
+  } else if (req.indices.empty()) {
+    status = Status::error("indices: must not be empty (or set all: true)");
+  } else {
+    std::vector<int> nodes;
+    status = checkIndices(toLong(req.indices), sim_.numNodes(), &nodes);
+    if (status) status = sim_.release(nodes);
+    if (status) {
+      for (int node : nodes) frame_pins_.detach(node);
+      status = Status::success("released " + std::to_string(nodes.size()) + " node(s)");
+    }
+  }
+  res.success = status.ok;
+  res.message = status.message;
+  if (!status) ROS_WARN("release_nodes rejected: %s", status.message.c_str());
+  return true;
+}
+
+bool ClothNode::onSetStiffness(cloth_sim::SetStiffness::Request& req,
+                               cloth_sim::SetStiffness::Response& res) {
+  Status status = sim_.setStiffness(req.spring_type, req.stiffness, req.damping);
+  if (status && status.message.empty()) {
+    status.message = "set " + req.spring_type + " stiffness to " + format("%g", req.stiffness) +
+                     " N/m" +
+                     (req.damping == -1.0 ? "" : ", damping to " + format("%g", req.damping) +
+                                                     " N*s/m");
+  }
+  res.success = status.ok;
+  res.message = status.message;
+  if (!status) ROS_WARN("set_stiffness rejected: %s", status.message.c_str());
+  return true;
+}
+
+bool ClothNode::onReset(std_srvs::Trigger::Request& /*req*/,
+                        std_srvs::Trigger::Response& res) {
+  sim_.reset();
+  frame_pins_.clear();  // attachments made by ~pin_nodes end here
+  const Status reattached = applyTfPinParams();  // grabs the nodes where they now are
+  res.success = true;
+  res.message = "reset to the initial state";
+  if (!reattached) {
+    res.message += "; " + reattached.message + " (not re-attached)";
+    ROS_WARN("reset: %s", reattached.message.c_str());
+  }
+  TickStats initial;
+  initial.dt = step_h_;
+  initial.energy = sim_.energy();
+  initial.max_strain = sim_.maxStrain();
+  publish(ros::Time::now(), initial);  // show the initial state before the next step
+  last_tick_ = initial;
+  return true;
+}
+
+// ----------------------------------------------------------- diagnostics ----
+
+void ClothNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
+  using diagnostic_msgs::DiagnosticStatus;
+  const ros::SteadyTime now = ros::SteadyTime::now();
+  const double wall = std::max(1e-9, (now - window_.start).toSec());
+  const Window& w = window_;
+  const double ticks = std::max(1, w.ticks);
+
+  if (w.failures > 0) {
+    stat.summaryf(DiagnosticStatus::ERROR,
+                  "solver failed in %d tick(s): %s; publishing the last good state", w.failures,
+                  w.failure.c_str());
+  } else if (w.overruns > 0) {
+    stat.summaryf(DiagnosticStatus::WARN, "%d tick(s) overran the %.1f ms period", w.overruns,
+                  1e3 * tick_s_);
+  } else if (w.rejected > 0) {
+    stat.summaryf(DiagnosticStatus::WARN, "recovered: %d step(s) rolled back and retried: %s",
+                  w.rejected, w.failure.c_str());
+  } else {
+    stat.summary(DiagnosticStatus::OK, "running");
+  }
+  stat.add("rate (Hz)", params_.rate);
+  stat.addf("achieved rate (Hz)", "%.2f", w.ticks / wall);
+  stat.add("overruns", w.overruns);
+  stat.add("overruns total", overruns_total_);
+  stat.addf("step time (ms per tick)", "%.3f", 1e3 * w.step_s / ticks);
+  stat.addf("tick time max (ms)", "%.3f", 1e3 * w.busy_max_s);
+  stat.add("steps per tick", steps_per_tick_);
+  stat.addf("dt (s)", "%.6g", step_h_);
+  stat.addf("CG iterations (per tick)", "%.1f", w.cg_iterations / ticks);
+  stat.add("CG iterations max (per tick)", w.cg_max);
+  stat.addf("residual max", "%.3g", w.residual_max);
+  stat.addf("energy (J)", "%.6g", last_tick_.energy);
+  stat.addf("max strain", "%.6g", last_tick_.max_strain);
+  stat.addf("real-time factor", "%.3f", w.sim_time_s / wall);
+  stat.addf("simulated time (s)", "%.3f", sim_.time());
+  stat.add("rejected steps", w.rejected);
+  stat.add("failures total", failures_total_);
+  stat.add("pinned nodes", sim_.pinnedNodes().size());
+  stat.add("tf pins", frame_pins_.size());
+  for (int type = 0; type < cloth_sim::kNumSpringTypes; ++type) {
+    const cloth_sim::SpringGroup& group = sim_.group(static_cast<cloth_sim::SpringType>(type));
+    if (!group.present) continue;
+    const std::string name = cloth_sim::toString(static_cast<cloth_sim::SpringType>(type));
+    stat.addf(name + " stiffness (N/m)", "%.17g", group.stiffness);
+    stat.addf(name + " damping (N*s/m)", "%.17g", group.damping);
+  }
+  window_ = Window();
+  window_.start = now;
+}
+
+}  // namespace cloth_sim_ros

@@ -1,0 +1,104 @@
+// The ROS face of one Simulation: a timer that steps it and publishes the
+// cloth, services that map onto its runtime requests, diagnostics. No physics
+// here. Single-threaded spinning makes every service act between steps.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <diagnostic_updater/diagnostic_updater.h>
+#include <ros/ros.h>
+#include <std_srvs/Trigger.h>
+#include <tf2_ros/buffer.h>
+#include <tf2_ros/transform_listener.h>
+#include <visualization_msgs/Marker.h>
+
+#include "cloth_messages.hpp"
+#include "cloth_sim/ClothState.h"
+#include "cloth_sim/PinNodes.h"
+#include "cloth_sim/ReleaseNodes.h"
+#include "cloth_sim/SetStiffness.h"
+#include "cloth_sim/simulation.hpp"
+#include "frame_pins.hpp"
+#include "node_params.hpp"
+
+namespace cloth_sim_ros {
+
+class ClothNode {
+ public:
+  /// Builds the simulation, waits for the tf_pins frames (params.tf_wait),
+  /// advertises, and starts the timer. Throws cloth_sim::SceneError for a bad
+  /// scene and ParamError for bad tf_pins.
+  ClothNode(ros::NodeHandle nh, ros::NodeHandle private_nh, const NodeParams& params,
+            const cloth_sim::Scene& scene);
+
+  /// Solver steps per tick and their size: n = ceil(tick / solver.dt), h = tick / n.
+  static int stepsPerTick(double tick_s, double dt);
+
+ private:
+  /// Counters for one diagnostics period.
+  struct Window {
+    ros::SteadyTime start;
+    int ticks = 0;
+    int overruns = 0;
+    int failures = 0;
+    int rejected = 0;
+    double busy_s = 0.0;      ///< wall time of the ticks' work
+    double busy_max_s = 0.0;
+    double step_s = 0.0;      ///< wall time inside Simulation::step
+    long cg_iterations = 0;
+    int cg_max = 0;           ///< per tick
+    double residual_max = 0.0;
+    double sim_time_s = 0.0;  ///< simulated time advanced
+    std::string failure;      ///< latest failure or recovery note
+  };
+
+  const cloth_sim::Model& model() const;
+  void onTick(const ros::SteadyTimerEvent& event);
+  /// Publishes the current state, or the last finite one if it is not finite.
+  void publish(const ros::Time& stamp, TickStats tick);
+
+  bool onPinNodes(cloth_sim::PinNodes::Request& req, cloth_sim::PinNodes::Response& res);
+  bool onReleaseNodes(cloth_sim::ReleaseNodes::Request& req,
+                      cloth_sim::ReleaseNodes::Response& res);
+  bool onSetStiffness(cloth_sim::SetStiffness::Request& req,
+                      cloth_sim::SetStiffness::Response& res);
+  bool onReset(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
+
+  /// Pins nodes (ints already range-checked or not: checked here), fixed or
+  /// attached to `frame`. Changes nothing unless it succeeds.
+  cloth_sim::Status pinNodes(const std::vector<long>& indices,
+                             const std::vector<cloth_sim::Vec3>& positions,
+                             const std::string& frame);
+  /// Applies the tf_pins parameter; errors name the tf_pins entry.
+  cloth_sim::Status applyTfPinParams();
+  void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat);
+
+  NodeParams params_;
+  cloth_sim::Simulation sim_;
+  double tick_s_;
+  int steps_per_tick_;
+  double step_h_;
+
+  tf2_ros::Buffer tf_buffer_;
+  tf2_ros::TransformListener tf_listener_;
+  FramePins frame_pins_;
+
+  ros::Publisher cloth_pub_, strain_pub_, state_pub_;
+  std::vector<ros::ServiceServer> services_;
+  ros::SteadyTimer timer_;
+  diagnostic_updater::Updater updater_;
+
+  visualization_msgs::Marker cloth_marker_;   ///< reused: points rewritten in place
+  visualization_msgs::Marker strain_marker_;
+  cloth_sim::ClothState state_msg_;
+  bool strain_valid_ = false;  ///< strain_marker_ holds a finite state
+
+  Window window_;
+  long overruns_total_ = 0;
+  long failures_total_ = 0;
+  TickStats last_tick_;
+};
+
+}  // namespace cloth_sim_ros

@@ -1,0 +1,75 @@
+#include "frame_pins.hpp"
+
+#include <cstdio>
+
+#include <tf2/exceptions.h>
+#include <tf2_eigen/tf2_eigen.h>
+
+namespace cloth_sim_ros {
+
+FramePins::FramePins(const tf2_ros::Buffer& buffer, std::string fixed_frame, double timeout)
+    : buffer_(buffer), fixed_frame_(std::move(fixed_frame)), timeout_(timeout) {}
+
+bool FramePins::lookup(const std::string& frame, Eigen::Isometry3d* transform,
+                       std::string* error) const {
+  geometry_msgs::TransformStamped msg;
+  try {
+    msg = buffer_.lookupTransform(fixed_frame_, frame, ros::Time(0));
+  } catch (const tf2::TransformException& e) {
+    *error = "frame_id: '" + frame + "' has no transform to '" + fixed_frame_ + "': " + e.what();
+    return false;
+  }
+  // Stamp zero: a static transform, valid forever.
+  if (!msg.header.stamp.isZero()) {
+    const double age = (ros::Time::now() - msg.header.stamp).toSec();
+    if (age > timeout_) {
+      char buf[160];
+      std::snprintf(buf, sizeof(buf), "' last transform is %.2f s old (tf_timeout %.2f s)", age,
+                    timeout_);
+      *error = "frame_id: '" + frame + buf;
+      return false;
+    }
+  }
+  *transform = tf2::transformToEigen(msg);
+  return true;
+}
+
+void FramePins::attach(int node, const std::string& frame, const cloth_sim::Vec3& offset,
+                       const cloth_sim::Vec3& target) {
+  attachments_[node] = Attachment{frame, offset, target};
+}
+
+std::vector<std::string> FramePins::update(cloth_sim::Simulation* sim, double tick_s) {
+  std::map<std::string, Eigen::Isometry3d> poses;  // one lookup per frame
+  std::map<std::string, std::string> lost;
+  for (auto it = attachments_.begin(); it != attachments_.end();) {
+    const int node = it->first;
+    Attachment& a = it->second;
+    if (!sim->isPinned(node)) {  // released by a scene event: nothing to follow
+      it = attachments_.erase(it);
+      continue;
+    }
+    ++it;
+    if (!poses.count(a.frame) && !lost.count(a.frame)) {
+      Eigen::Isometry3d transform;
+      std::string error;
+      if (lookup(a.frame, &transform, &error)) {
+        poses[a.frame] = transform;
+      } else {
+        lost[a.frame] = error;
+      }
+    }
+    if (lost.count(a.frame)) {
+      sim->movePin(node, a.target);  // hold where it was last seen
+      continue;
+    }
+    const cloth_sim::Vec3 goal = poses[a.frame] * a.offset;
+    const cloth_sim::Vec3 velocity = (goal - a.target) / tick_s;
+    if (sim->movePin(node, a.target, velocity, tick_s)) a.target = goal;
+  }
+  std::vector<std::string> errors;
+  for (const auto& entry : lost) errors.push_back(entry.second);
+  return errors;
+}
+
+}  // namespace cloth_sim_ros

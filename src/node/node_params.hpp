@@ -1,0 +1,52 @@
+// The node's own parameters (everything in the private namespace that is not
+// scene schema), read and validated before anything starts.
+#pragma once
+
+#include <set>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <std_msgs/ColorRGBA.h>
+#include <xmlrpcpp/XmlRpcValue.h>
+
+#include "cloth_sim/types.hpp"
+
+namespace cloth_sim_ros {
+
+/// A bad node parameter; what() starts with the parameter's name,
+/// e.g. "rate: must be a finite number > 0, got 0".
+class ParamError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// Nodes attached to a tf2 frame at start-up (same meaning as ~pin_nodes).
+struct TfPinParam {
+  std::vector<int> indices;
+  std::string frame_id;
+  std::vector<cloth_sim::Vec3> positions;  ///< offsets in frame_id; empty: keep where they are
+};
+
+struct NodeParams {
+  double rate = 60.0;               ///< timer ticks per second, Hz
+  std::string frame_id = "world";   ///< frame of every published point
+  std_msgs::ColorRGBA color;        ///< ~cloth colour (set in readNodeParams)
+  bool publish_strain = true;       ///< advertise ~strain
+  std::vector<TfPinParam> tf_pins;  ///< pins attached to tf2 frames at start-up
+  double tf_timeout = 0.5;          ///< a pin frame older than this is lost, s
+  double tf_wait = 10.0;            ///< start-up wait for tf_pins frames, s
+};
+
+/// Private-namespace keys that belong to the node, not to the scene.
+/// (diagnostic_period is read by diagnostic_updater.)
+const std::set<std::string>& nodeParamKeys();
+
+/// The default ~cloth colour, an opaque orange (kept distinct from TF axes).
+std_msgs::ColorRGBA defaultClothColor();
+
+/// Reads the node's parameters from the private-namespace tree; absent ones
+/// keep their defaults. Throws ParamError naming the parameter.
+NodeParams readNodeParams(const XmlRpc::XmlRpcValue& private_ns);
+
+}  // namespace cloth_sim_ros

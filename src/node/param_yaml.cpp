@@ -1,0 +1,88 @@
+#include "param_yaml.hpp"
+
+#include <cmath>
+#include <cstdio>
+
+namespace cloth_sim_ros {
+namespace {
+
+std::string quote(const std::string& text) {
+  std::string out = "\"";
+  for (const char c : text) {
+    switch (c) {
+      case '"': out += "\\\""; break;
+      case '\\': out += "\\\\"; break;
+      case '\n': out += "\\n"; break;
+      case '\t': out += "\\t"; break;
+      case '\r': out += "\\r"; break;
+      default:
+        if (static_cast<unsigned char>(c) < 0x20) {
+          char buf[8];
+          std::snprintf(buf, sizeof(buf), "\\x%02x", static_cast<unsigned char>(c));
+          out += buf;
+        } else {
+          out += c;
+        }
+    }
+  }
+  return out + "\"";
+}
+
+std::string number(double value) {
+  if (std::isnan(value)) return ".nan";
+  if (std::isinf(value)) return value > 0 ? ".inf" : "-.inf";
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.17g", value);
+  return buf;
+}
+
+}  // namespace
+
+std::string toYaml(const XmlRpc::XmlRpcValue& value) {
+  // XmlRpcValue's accessors are non-const; copying is cheap for parameter trees.
+  XmlRpc::XmlRpcValue v = value;
+  switch (v.getType()) {
+    case XmlRpc::XmlRpcValue::TypeBoolean:
+      return static_cast<bool>(v) ? "true" : "false";
+    case XmlRpc::XmlRpcValue::TypeInt:
+      return std::to_string(static_cast<int>(v));
+    case XmlRpc::XmlRpcValue::TypeDouble:
+      return number(static_cast<double>(v));
+    case XmlRpc::XmlRpcValue::TypeString:
+      return quote(static_cast<std::string>(v));
+    case XmlRpc::XmlRpcValue::TypeArray: {
+      std::string out = "[";
+      for (int k = 0; k < v.size(); ++k) out += (k ? ", " : "") + toYaml(v[k]);
+      return out + "]";
+    }
+    case XmlRpc::XmlRpcValue::TypeStruct: {
+      std::string out = "{";
+      bool first = true;
+      for (const auto& entry : v) {
+        out += (first ? "" : ", ") + quote(entry.first) + ": " + toYaml(entry.second);
+        first = false;
+      }
+      return out + "}";
+    }
+    case XmlRpc::XmlRpcValue::TypeInvalid:
+      return "null";
+    default:  // dateTime, base64: no scene field takes these; the validator names the field
+      return quote(v.toXml());
+  }
+}
+
+std::string sceneYaml(const XmlRpc::XmlRpcValue& private_ns,
+                      const std::set<std::string>& node_keys) {
+  if (private_ns.getType() != XmlRpc::XmlRpcValue::TypeStruct) return "{}";
+  XmlRpc::XmlRpcValue tree = private_ns;
+  std::string out = "{";
+  bool first = true;
+  for (const auto& entry : tree) {
+    if (node_keys.count(entry.first)) continue;
+    out += (first ? "" : ", ") + quote(entry.first) + ": " + toYaml(entry.second);
+    first = false;
+  }
+  return out + "}";
+}
+
+}  // namespace cloth_sim_ros

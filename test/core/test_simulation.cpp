@@ -1,0 +1,238 @@
+// Simulation behaviour a user relies on: energy, pins, runtime requests, reset.
+#include <gtest/gtest.h>
+
+#include "cloth_sim/simulation.hpp"
+#include "scene_builders.hpp"
+
+namespace cloth_sim {
+namespace {
+
+using test::bareScene;
+using test::enable;
+using test::hangingCloth;
+
+TEST(Energy, NeverIncreasesWithFixedPinsAndDamping) {
+  for (Method method : {Method::ImplicitEuler, Method::Newton}) {
+    Scene s = hangingCloth(8, method);
+    s.solver.dt = 0.02;
+    Simulation sim(s);
+    double previous = sim.energy();
+    for (int n = 0; n < 300; ++n) {
+      const StepStats stats = sim.step();
+      ASSERT_TRUE(stats.ok) << stats.failure;
+      ASSERT_LE(stats.energy, previous + 1e-12 * std::abs(previous)) << toString(method) << " step " << n;
+      previous = stats.energy;
+    }
+  }
+}
+
+TEST(Pins, SitExactlyOnTargetsWhateverTheIterationCap) {
+  for (int cap : {1, 2, 5}) {
+    for (bool recovery : {false, true}) {
+      Scene s = hangingCloth(8);
+      s.solver.max_iterations = cap;
+      s.solver.recovery = recovery;
+      s.solver.max_halvings = 2;
+      Simulation sim(s);
+      ASSERT_TRUE(sim.drivePin(7, Vec3(0.3, 0.0, 0.2), 0.5));
+      for (int n = 0; n < 30; ++n) {
+        const StepStats stats = sim.step();
+        ASSERT_TRUE(stats.finite);
+        for (const auto& [node, pin] : sim.pins()) {
+          ASSERT_EQ(sim.position(node), pin.position) << "cap " << cap << " node " << node;
+        }
+      }
+      // Node 7 moved with its pin: 30 steps of 0.01 s at the given velocity.
+      EXPECT_NEAR((sim.position(7) - sim.model().rest_positions.segment<3>(21)).norm(),
+                  0.3 * std::hypot(0.3, 0.2), 1e-12);
+      EXPECT_EQ(sim.position(0), sim.model().rest_positions.segment<3>(0));
+    }
+  }
+}
+
+TEST(Pins, PinnedNodeStaysWhileOthersFall) {
+  Scene s = hangingCloth(6);
+  Simulation sim(s);
+  for (int n = 0; n < 50; ++n) ASSERT_TRUE(sim.step().ok);
+  EXPECT_EQ(sim.position(0), sim.model().rest_positions.segment<3>(0));
+  EXPECT_LT(sim.position(35).z(), s.cloth.origin.z() - 0.1);
+}
+
+TEST(Requests, BadRequestsAreRejectedAndChangeNothing) {
+  Scene s = hangingCloth(4);
+  Simulation sim(s);
+  for (int n = 0; n < 5; ++n) sim.step();
+  const VecX x = sim.positions(), v = sim.velocities();
+  const auto pins = sim.pinnedNodes();
+  const double k = sim.group(SpringType::Stretch).stiffness;
+  auto expectUnchanged = [&](const Status& status, const std::string& fragment) {
+    EXPECT_FALSE(status.ok);
+    EXPECT_NE(status.message.find(fragment), std::string::npos) << status.message;
+    EXPECT_EQ(sim.positions(), x);
+    EXPECT_EQ(sim.velocities(), v);
+    EXPECT_EQ(sim.pinnedNodes(), pins);
+    EXPECT_EQ(sim.group(SpringType::Stretch).stiffness, k);
+  };
+  expectUnchanged(sim.pin({16}), "indices[0]: index 16 out of range [0, 15]");
+  expectUnchanged(sim.pin({-1}), "indices[0]");
+  expectUnchanged(sim.pin({}), "indices: empty list");
+  expectUnchanged(sim.pin({3, 5, 3}), "indices[2]: duplicate index 3");
+  expectUnchanged(sim.pin({3, 5}, {Vec3(0, 0, 0)}), "positions: 1 given for 2 indices");
+  expectUnchanged(sim.pin({3}, {Vec3(0, NAN, 0)}), "positions[0]: must be finite");
+  expectUnchanged(sim.release({2}), "indices[0]: node 2 is not pinned");
+  expectUnchanged(sim.release({0, 99}), "indices[1]: index 99 out of range");
+  expectUnchanged(sim.setStiffness("stretch", -3.0), "stiffness: must be > 0 and finite, got -3");
+  expectUnchanged(sim.setStiffness("stretch", NAN), "stiffness");
+  expectUnchanged(sim.setStiffness("stretch", INFINITY), "stiffness");
+  expectUnchanged(sim.setStiffness("stretch", 10.0, -0.5), "damping: must be >= 0");
+  expectUnchanged(sim.setStiffness("stretch", 10.0, NAN), "damping");
+  expectUnchanged(sim.setStiffness("wool", 10.0), "spring_type: unknown 'wool'");
+  expectUnchanged(sim.movePin(0, Vec3(INFINITY, 0, 0)), "position: must be finite");
+  expectUnchanged(sim.drivePin(40, Vec3(1, 0, 0), 1.0), "index: 40 out of range");
+
+  Scene no_bend = s;
+  no_bend.springs[static_cast<int>(SpringType::Bend)].enabled = false;
+  Simulation sim2(no_bend);
+  const Status st = sim2.setStiffness("bend", 10.0);
+  EXPECT_FALSE(st.ok);
+  EXPECT_NE(st.message.find("'bend' is not in the scene"), std::string::npos) << st.message;
+}
+
+TEST(Requests, GoodRequestsTakeEffect) {
+  Scene s = hangingCloth(6);
+  Simulation sim(s);
+  ASSERT_TRUE(sim.setStiffness("all", 1e4, 3.0));
+  EXPECT_EQ(sim.group(SpringType::Shear).stiffness, 1e4);
+  EXPECT_EQ(sim.group(SpringType::Shear).damping, 3.0);
+  ASSERT_TRUE(sim.setStiffness("shear", 700.0, -1.0));
+  EXPECT_EQ(sim.group(SpringType::Shear).damping, 3.0);  // -1 keeps damping
+  ASSERT_TRUE(sim.release({0}));
+  EXPECT_FALSE(sim.isPinned(0));
+  ASSERT_TRUE(sim.pin({10}));
+  const Vec3 held = sim.position(10);
+  for (int n = 0; n < 20; ++n) ASSERT_TRUE(sim.step().ok);
+  EXPECT_EQ(sim.position(10), held);
+  EXPECT_LT(sim.position(0).z(), s.cloth.origin.z() - 0.01);  // released corner falls
+}
+
+/// Largest strain among the stretch springs (shear springs strain by shearing).
+double maxStretchStrain(const Simulation& sim) {
+  const SpringGroup& g = sim.group(SpringType::Stretch);
+  double strain = 0.0;
+  for (int k = g.begin; k < g.end; ++k) {
+    const Spring& s = sim.model().springs[k];
+    strain = std::max(strain, (sim.position(s.j) - sim.position(s.i)).norm() / s.rest_length - 1.0);
+  }
+  return strain;
+}
+
+TEST(Requests, StifferClothStretchesLess) {
+  Simulation soft(hangingCloth(8)), stiff(hangingCloth(8));
+  ASSERT_TRUE(stiff.setStiffness("stretch", 5e5));
+  for (int n = 0; n < 200; ++n) {
+    soft.step();
+    stiff.step();
+  }
+  EXPECT_LT(maxStretchStrain(stiff), 0.02 * maxStretchStrain(soft));
+}
+
+TEST(Reset, RestoresInitialStateExactly) {
+  Scene s = hangingCloth(6);
+  Simulation sim(s);
+  const VecX x0 = sim.positions();
+  ASSERT_TRUE(sim.setStiffness("stretch", 100.0));
+  ASSERT_TRUE(sim.release({0}));
+  ASSERT_TRUE(sim.pin({20}));
+  for (int n = 0; n < 30; ++n) sim.step();
+  sim.reset();
+  EXPECT_EQ(sim.positions(), x0);
+  EXPECT_TRUE(sim.velocities().isZero(0.0));
+  EXPECT_EQ(sim.time(), 0.0);
+  EXPECT_EQ(sim.pinnedNodes(), (std::vector<int>{0, 5}));
+  EXPECT_EQ(sim.group(SpringType::Stretch).stiffness, 5000.0);
+  // And it replays the same trajectory bit for bit.
+  Simulation fresh(s);
+  for (int n = 0; n < 10; ++n) {
+    sim.step();
+    fresh.step();
+  }
+  EXPECT_EQ(sim.positions(), fresh.positions());
+}
+
+TEST(Recovery, ExplicitStepperFailsLoudlyAndKeepsStateFinite) {
+  Scene s = hangingCloth(8, Method::SymplecticEuler);
+  s.springs[0].stiffness = 1e8;
+  s.solver.dt = 1.0 / 30.0;
+  s.solver.max_halvings = 3;
+  Simulation sim(s);
+  bool failed = false;
+  for (int n = 0; n < 50 && !failed; ++n) {
+    const StepStats stats = sim.step();
+    EXPECT_TRUE(sim.positions().allFinite());
+    if (!stats.ok) {
+      failed = true;
+      EXPECT_FALSE(stats.failure.empty());
+    }
+  }
+  EXPECT_TRUE(failed);
+}
+
+TEST(Recovery, ImplicitSteppersSurviveVeryStiffCloth) {
+  for (Method method : {Method::ImplicitEuler, Method::Newton, Method::Bdf2}) {
+    Scene s = hangingCloth(8, method);
+    s.springs[0].stiffness = 1e8;
+    s.solver.dt = 1.0 / 30.0;
+    s.solver.tolerance = 1e-8;
+    s.solver.preconditioner = Preconditioner::Cholesky;
+    Simulation sim(s);
+    for (int n = 0; n < 60; ++n) {
+      const StepStats stats = sim.step();
+      ASSERT_TRUE(stats.ok) << toString(method) << ": " << stats.failure;
+      ASSERT_TRUE(stats.finite);
+    }
+    EXPECT_LT(maxStretchStrain(sim), 1e-4) << toString(method);
+  }
+}
+
+TEST(Events, AppliedBetweenStepsAtTheirTime) {
+  Scene s = hangingCloth(5);
+  SceneEvent release;
+  release.time = 0.1;
+  release.kind = SceneEvent::Kind::Release;
+  release.release_all = true;
+  s.events = {release};
+  Simulation sim(s);
+  for (int n = 0; n < 10; ++n) sim.step();
+  EXPECT_EQ(sim.pinnedNodes().size(), 2u);
+  sim.step();  // t = 0.1: the release applies before this step
+  EXPECT_TRUE(sim.pinnedNodes().empty());
+}
+
+TEST(Model, OnlyTheGroupsTheSceneNamesExist) {
+  Scene s = bareScene(4, 5);
+  enable(s, SpringType::Shear, 10.0, 0.0);
+  const Model m = buildModel(s);
+  EXPECT_EQ(m.springs.size(), static_cast<size_t>(2 * 3 * 4));
+  EXPECT_FALSE(m.groups[0].present);
+  EXPECT_FALSE(m.groups[2].present);
+  enable(s, SpringType::Stretch, 10.0, 0.0);
+  enable(s, SpringType::Bend, 10.0, 0.0);
+  const Model full = buildModel(s);
+  // stretch: 4*4 + 3*5, shear: 2*3*4, bend: 4*3 + 2*5
+  EXPECT_EQ(full.springs.size(), static_cast<size_t>(31 + 24 + 22));
+  EXPECT_EQ(full.triangles.size(), static_cast<size_t>(2 * 3 * 4));
+}
+
+TEST(Model, TrianglesFaceUpForHorizontalCloth) {
+  Scene s = bareScene(3, 4);
+  const Model m = buildModel(s);
+  for (const auto& t : m.triangles) {
+    const VecX& x = m.rest_positions;
+    const Vec3 n = (x.segment<3>(3 * t[1]) - x.segment<3>(3 * t[0]))
+                       .cross(x.segment<3>(3 * t[2]) - x.segment<3>(3 * t[0]));
+    EXPECT_GT(n.z(), 0.0);
+  }
+}
+
+}  // namespace
+}  // namespace cloth_sim

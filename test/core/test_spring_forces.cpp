@@ -1,0 +1,114 @@
+// Analytic spring Jacobians against central finite differences.
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "cloth_sim/spring_forces.hpp"
+
+namespace cloth_sim {
+namespace {
+
+struct Case {
+  const char* name;
+  Vec3 xi, xj, vi, vj;
+  double rest_length;
+};
+
+std::vector<Case> cases() {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  auto rnd = [&] { return Vec3(u(rng), u(rng), u(rng)); };
+  std::vector<Case> out;
+  for (int k = 0; k < 5; ++k) out.push_back({"random", rnd(), rnd(), rnd(), rnd(), 0.7});
+  out.push_back({"stretched", Vec3(0, 0, 0), Vec3(1.5, 0.2, -0.1), rnd(), rnd(), 1.0});
+  out.push_back({"compressed", Vec3(0, 0, 0), Vec3(0.3, 0.1, 0.05), rnd(), rnd(), 1.0});
+  out.push_back({"nearly degenerate", Vec3(0, 0, 0), Vec3(1e-4, -2e-4, 1e-4), rnd(), rnd(), 1.0});
+  out.push_back({"zero rest length", Vec3(0, 0, 0), Vec3(0.2, 0.1, -0.3), rnd(), rnd(), 0.0});
+  return out;
+}
+
+/// Max relative error of analytic vs central-difference blocks, scaled by the block norm.
+void expectJacobianMatchesFd(const Case& c, DampingModel model) {
+  SpringParams p;
+  p.stiffness = 7.0;
+  p.damping = 0.9;
+  p.rest_length = c.rest_length;
+  p.damping_model = model;
+  const SpringJacobian J =
+      springJacobian(c.xi, c.xj, c.vi, c.vj, p, /*project=*/false, /*damping_dx=*/true);
+  const double eps = 1e-6 * std::max(1e-3, (c.xj - c.xi).norm());
+  Mat3 K_fd, D_fd;
+  for (int a = 0; a < 3; ++a) {
+    Vec3 e = Vec3::Zero();
+    e[a] = eps;
+    K_fd.col(a) = (springForce(c.xi, c.xj + e, c.vi, c.vj, p) -
+                   springForce(c.xi, c.xj - e, c.vi, c.vj, p)) / (2 * eps);
+    D_fd.col(a) = (springForce(c.xi, c.xj, c.vi, c.vj + e, p) -
+                   springForce(c.xi, c.xj, c.vi, c.vj - e, p)) / (2 * eps);
+    // df_i/dx_i must be -df_i/dx_j (translation invariance).
+    const Vec3 dxi = (springForce(c.xi + e, c.xj, c.vi, c.vj, p) -
+                      springForce(c.xi - e, c.xj, c.vi, c.vj, p)) / (2 * eps);
+    EXPECT_LE((dxi + K_fd.col(a)).norm(), 1e-6 * std::max(1.0, K_fd.norm())) << c.name;
+  }
+  EXPECT_LE((J.K - K_fd).norm(), 1e-6 * std::max(1.0, K_fd.norm())) << c.name;
+  EXPECT_LE((J.D - D_fd).norm(), 1e-6 * std::max(1.0, D_fd.norm())) << c.name;
+}
+
+TEST(SpringJacobian, MatchesFiniteDifferencesAlongSpringDamping) {
+  for (const Case& c : cases()) expectJacobianMatchesFd(c, DampingModel::AlongSpring);
+}
+
+TEST(SpringJacobian, MatchesFiniteDifferencesRelativeVelocityDamping) {
+  for (const Case& c : cases()) expectJacobianMatchesFd(c, DampingModel::RelativeVelocity);
+}
+
+TEST(SpringJacobian, ProjectionKeepsStiffnessPositiveSemidefinite) {
+  SpringParams p;
+  p.stiffness = 100.0;
+  p.rest_length = 1.0;
+  const Vec3 xi(0, 0, 0), xj(0.2, 0.1, 0.0), v(0, 0, 0);
+  const Mat3 K_raw = springJacobian(xi, xj, v, v, p, false).K;
+  const Mat3 K = springJacobian(xi, xj, v, v, p, true).K;
+  Eigen::SelfAdjointEigenSolver<Mat3> raw(K_raw), projected(K);
+  EXPECT_LT(raw.eigenvalues().minCoeff(), -1.0);  // indefinite without projection
+  EXPECT_GE(projected.eigenvalues().minCoeff(), -1e-12);
+  // Along the axis, projection changes nothing.
+  const Vec3 u = (xj - xi).normalized();
+  EXPECT_NEAR(u.dot(K * u), u.dot(K_raw * u), 1e-12);
+}
+
+TEST(SpringJacobian, StretchedSpringUnchangedByProjection) {
+  SpringParams p;
+  p.stiffness = 100.0;
+  p.rest_length = 1.0;
+  const Vec3 xi(0, 0, 0), xj(1.3, 0.1, 0.0), v(0, 0, 0);
+  EXPECT_EQ(springJacobian(xi, xj, v, v, p, false).K, springJacobian(xi, xj, v, v, p, true).K);
+}
+
+TEST(SpringForce, ZeroLengthSpringIsFiniteAndPushesAlongRestAxis) {
+  SpringParams p;
+  p.stiffness = 10.0;
+  p.damping = 1.0;
+  p.rest_length = 0.5;
+  p.rest_direction = Vec3(0, 1, 0);
+  const Vec3 x(1, 2, 3), v(0.1, 0, 0);
+  const Vec3 f = springForce(x, x, v, -v, p);
+  ASSERT_TRUE(f.allFinite());
+  // f_i = k (0 - L) u: node i pushed away from j, along -u.
+  EXPECT_NEAR(f.y(), -10.0 * 0.5, 1e-12);
+  const SpringJacobian J = springJacobian(x, x, v, -v, p, false, true);
+  EXPECT_TRUE(J.K.allFinite());
+  EXPECT_TRUE(J.D.allFinite());
+}
+
+TEST(SpringForce, HookeanMagnitudeAndEnergy) {
+  SpringParams p;
+  p.stiffness = 20.0;
+  p.rest_length = 1.0;
+  const Vec3 xi(0, 0, 0), xj(0, 0, 1.25), v(0, 0, 0);
+  EXPECT_NEAR(springForce(xi, xj, v, v, p).z(), 20.0 * 0.25, 1e-14);
+  EXPECT_NEAR(springEnergy(xi, xj, p), 0.5 * 20.0 * 0.0625, 1e-14);
+}
+
+}  // namespace
+}  // namespace cloth_sim

@@ -1,0 +1,122 @@
+// The message builders: what ~cloth, ~strain and ~state contain for a given
+// simulation, checked without ROS running.
+#include <gtest/gtest.h>
+
+#include "cloth_messages.hpp"
+#include "cloth_sim/scene.hpp"
+
+namespace {
+
+cloth_sim::Scene scene(int rows, int cols) {
+  return cloth_sim::parseScene("{cloth: {rows: " + std::to_string(rows) + ", cols: " +
+                               std::to_string(cols) +
+                               "}, springs: {stretch: {stiffness: 100}}, pins: [0]}");
+}
+
+TEST(ClothMessages, ClothMarkerHasTwoTrianglesPerCellWithConsistentWinding) {
+  cloth_sim::Simulation sim(scene(4, 5));
+  std_msgs::ColorRGBA color = cloth_sim_ros::defaultClothColor();
+  auto m = cloth_sim_ros::triangleMarker("world", "cloth", color);
+  cloth_sim_ros::setTrianglePoints(sim.model(), sim.positions(), &m);
+  EXPECT_EQ(m.type, visualization_msgs::Marker::TRIANGLE_LIST);
+  EXPECT_EQ(m.ns, "cloth");
+  EXPECT_EQ(m.id, 0);
+  EXPECT_EQ(m.pose.orientation.w, 1.0);
+  EXPECT_EQ(m.scale.x, 1.0);
+  EXPECT_EQ(m.color.r, color.r);
+  ASSERT_EQ(m.points.size(), 6u * 3 * 4);
+  // Flat horizontal cloth: every triangle's normal points the same way.
+  for (size_t t = 0; t < m.points.size(); t += 3) {
+    const cloth_sim::Vec3 a(m.points[t].x, m.points[t].y, m.points[t].z);
+    const cloth_sim::Vec3 b(m.points[t + 1].x, m.points[t + 1].y, m.points[t + 1].z);
+    const cloth_sim::Vec3 c(m.points[t + 2].x, m.points[t + 2].y, m.points[t + 2].z);
+    const double nz = (b - a).cross(c - a).z();
+    EXPECT_GT(std::abs(nz), 1e-6);
+    if (t > 0) {
+      const cloth_sim::Vec3 a0(m.points[0].x, m.points[0].y, m.points[0].z);
+      const cloth_sim::Vec3 b0(m.points[1].x, m.points[1].y, m.points[1].z);
+      const cloth_sim::Vec3 c0(m.points[2].x, m.points[2].y, m.points[2].z);
+      EXPECT_GT(nz * (b0 - a0).cross(c0 - a0).z(), 0.0) << "triangle " << t / 3;
+    }
+  }
+  // Every node of the grid appears.
+  for (int node = 0; node < sim.numNodes(); ++node) {
+    bool found = false;
+    for (const auto& p : m.points) {
+      found = found || (p.x == sim.position(node).x() && p.y == sim.position(node).y() &&
+                        p.z == sim.position(node).z());
+    }
+    EXPECT_TRUE(found) << "node " << node;
+  }
+}
+
+TEST(ClothMessages, AChainHasNoTriangles) {
+  cloth_sim::Simulation sim(scene(5, 1));
+  auto m = cloth_sim_ros::triangleMarker("world", "cloth", cloth_sim_ros::defaultClothColor());
+  cloth_sim_ros::setTrianglePoints(sim.model(), sim.positions(), &m);
+  EXPECT_TRUE(m.points.empty());
+}
+
+TEST(ClothMessages, StrainColourRunsFromBlueAtRestToRedAtTenPercent) {
+  auto c = cloth_sim_ros::strainColor(0.0);
+  EXPECT_EQ(c.r, 0.0f);
+  EXPECT_EQ(c.b, 1.0f);
+  c = cloth_sim_ros::strainColor(-0.3);  // compressed: still blue
+  EXPECT_EQ(c.b, 1.0f);
+  c = cloth_sim_ros::strainColor(0.05);
+  EXPECT_FLOAT_EQ(c.r, 0.5f);
+  EXPECT_FLOAT_EQ(c.b, 0.5f);
+  c = cloth_sim_ros::strainColor(0.1);
+  EXPECT_EQ(c.r, 1.0f);
+  EXPECT_EQ(c.b, 0.0f);
+  c = cloth_sim_ros::strainColor(3.0);
+  EXPECT_EQ(c.r, 1.0f);
+  EXPECT_EQ(c.a, 1.0f);
+}
+
+TEST(ClothMessages, StateCarriesPositionsVelocitiesPinsAndTime) {
+  cloth_sim::Simulation sim(scene(3, 3));
+  for (int k = 0; k < 5; ++k) sim.step(0.01);
+  cloth_sim::ClothState msg;
+  cloth_sim_ros::fillClothState(sim, &msg);
+  EXPECT_EQ(msg.rows, 3u);
+  EXPECT_EQ(msg.cols, 3u);
+  ASSERT_EQ(msg.positions.size(), 9u);
+  ASSERT_EQ(msg.velocities.size(), 9u);
+  for (int i = 0; i < 9; ++i) {
+    EXPECT_EQ(msg.positions[i].z, sim.position(i).z());
+    EXPECT_EQ(msg.velocities[i].z, sim.velocities()[3 * i + 2]);
+  }
+  EXPECT_EQ(msg.pinned, std::vector<uint32_t>{0});
+  EXPECT_DOUBLE_EQ(msg.sim_time, 0.05);
+}
+
+TEST(ClothMessages, TickStatsCombineTheSteps) {
+  cloth_sim_ros::TickStats tick;
+  cloth_sim::StepStats a, b;
+  a.cg_iterations = 3;
+  a.residual = 1e-7;
+  a.energy = 5.0;
+  b.cg_iterations = 4;
+  b.residual = 1e-9;
+  b.energy = 4.0;
+  b.rejected = 1;
+  b.substeps = 2;
+  b.failure = "recovered from: energy jump";
+  tick.add(a);
+  tick.add(b);
+  EXPECT_EQ(tick.steps, 3);
+  EXPECT_EQ(tick.cg_iterations, 7);
+  EXPECT_EQ(tick.residual, 1e-7);
+  EXPECT_EQ(tick.energy, 4.0);
+  EXPECT_EQ(tick.rejected, 1);
+  EXPECT_TRUE(tick.ok);
+  EXPECT_EQ(tick.failure, "recovered from: energy jump");
+  cloth_sim::StepStats bad;
+  bad.ok = false;
+  bad.failure = "non-finite position or velocity";
+  tick.add(bad);
+  EXPECT_FALSE(tick.ok);
+}
+
+}  // namespace

@@ -1,0 +1,178 @@
+// rostest: a pin attached to a moving tf2 frame follows it within one tick
+// (tf_pin.test). The test itself broadcasts the frame.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include <geometry_msgs/TransformStamped.h>
+#include <ros/ros.h>
+#include <std_srvs/Trigger.h>
+#include <tf2_ros/transform_broadcaster.h>
+
+#include "cloth_sim/PinNodes.h"
+#include "node_test_helpers.hpp"
+
+using cloth_sim::ClothState;
+using cloth_sim::Vec3;
+using cloth_sim_test::toVec;
+
+namespace {
+
+constexpr double kTick = 1.0 / 30.0;          // tf_pin.test rate
+constexpr double kBroadcastPeriod = 0.005;    // 200 Hz
+const Vec3 kStart(0.7, 0.0, 1.0);             // node 7's initial position
+const Vec3 kVelocity(0.0, -0.15, 0.2);        // m/s
+
+/// Broadcasts frame "test_gripper" in "world" while spinning.
+class Gripper {
+ public:
+  void send(const Vec3& p) {
+    geometry_msgs::TransformStamped tf;
+    tf.header.stamp = ros::Time::now();
+    tf.header.frame_id = "world";
+    tf.child_frame_id = "test_gripper";
+    tf.transform.translation.x = p.x();
+    tf.transform.translation.y = p.y();
+    tf.transform.translation.z = p.z();
+    tf.transform.rotation.w = 1.0;
+    broadcaster_.sendTransform(tf);
+  }
+  /// Holds `position(t)` (t from now) for `duration` s, spinning; stops early when done().
+  void run(const std::function<Vec3(double)>& position, double duration,
+           const std::function<bool()>& done = [] { return false; }) {
+    const ros::WallTime start = ros::WallTime::now();
+    while (ros::ok()) {
+      const double t = (ros::WallTime::now() - start).toSec();
+      if (t > duration || done()) break;
+      send(position(t));
+      ros::spinOnce();
+      ros::WallDuration(kBroadcastPeriod).sleep();
+    }
+  }
+
+ private:
+  tf2_ros::TransformBroadcaster broadcaster_;
+};
+
+cloth_sim::PinNodes::Response pinToGripper(const std::vector<uint32_t>& indices,
+                                           const std::vector<Vec3>& offsets) {
+  cloth_sim::PinNodes srv;
+  srv.request.indices = indices;
+  for (const Vec3& p : offsets) {
+    geometry_msgs::Point q;
+    q.x = p.x();
+    q.y = p.y();
+    q.z = p.z();
+    srv.request.positions.push_back(q);
+  }
+  srv.request.frame_id = "test_gripper";
+  EXPECT_TRUE(ros::service::call("/cloth_sim/pin_nodes", srv));
+  return srv.response;
+}
+
+TEST(TfPin, PinnedNodesFollowAMovingFrameWithinOneTick) {
+  cloth_sim_test::NodeClient client;
+  ASSERT_TRUE(ros::service::waitForService("/cloth_sim/pin_nodes", ros::Duration(30)));
+  ASSERT_TRUE(client.reset());
+  Gripper gripper;
+  gripper.run([](double) { return kStart; }, 1.0);  // the node's tf buffer fills
+
+  // Node 7 at the frame's origin; node 6 grabbed where it is (empty positions).
+  auto res = pinToGripper({7}, {Vec3::Zero()});
+  ASSERT_TRUE(res.success) << res.message;
+  ClothState s;
+  ASSERT_TRUE(client.waitState([](const ClothState&) { return true; }, 5.0, &s));
+  res = pinToGripper({6}, {});
+  ASSERT_TRUE(res.success) << res.message;
+  ASSERT_TRUE(client.waitState([](const ClothState&) { return true; }, 5.0, &s));
+  const Vec3 grip6 = toVec(s.positions[6]) - kStart;  // node 6's offset in the frame
+
+  // Move the frame along a line; record the states meanwhile.
+  std::vector<ClothState::ConstPtr> states;
+  ros::Subscriber sub = client.nh().subscribe<ClothState>(
+      "/cloth_sim/state", 200,
+      boost::function<void(const ClothState::ConstPtr&)>(
+          [&](const ClothState::ConstPtr& m) { states.push_back(m); }));
+  cloth_sim_test::spinUntil([] { return false; }, 0.3);
+  states.clear();
+  const ros::Time t0 = ros::Time::now();
+  const double duration = 2.0;
+  gripper.run([](double t) -> Vec3 { return kStart + kVelocity * t; }, duration);
+  gripper.run([](double) -> Vec3 { return kStart + kVelocity * 2.0; }, 0.5);  // and rest
+
+  int checked = 0;
+  for (const auto& state : states) {
+    const double age_start = (state->header.stamp - t0).toSec();
+    if (age_start < 2 * kTick || age_start > duration) continue;  // moving, after the first ticks
+    ASSERT_EQ(state->pinned, (std::vector<uint32_t>{0, 6, 7}));
+    const Vec3 p7 = toVec(state->positions[7]);
+    // Where on the frame's path is node 7, and when was the frame there?
+    const double along = (p7 - kStart).dot(kVelocity) / kVelocity.squaredNorm();
+    const Vec3 on_path = kStart + kVelocity * along;
+    EXPECT_LT((p7 - on_path).norm(), 1e-9) << "node 7 left the frame's path";
+    const double lag = age_start - along;
+    EXPECT_LT(lag, kTick + 2 * kBroadcastPeriod + 0.01)
+        << "node 7 is " << lag << " s behind the frame at t " << age_start;
+    EXPECT_GT(lag, -0.005) << "node 7 ahead of the frame";
+    // Node 6 keeps its offset in the frame.
+    EXPECT_LT((toVec(state->positions[6]) - p7 - (grip6 - Vec3::Zero())).norm(), 1e-9);
+    ++checked;
+  }
+  EXPECT_GT(checked, 40) << "too few states while moving";
+
+  // At rest the nodes sit on the frame exactly.
+  ASSERT_TRUE(client.waitState([](const ClothState&) { return true; }, 5.0, &s));
+  const Vec3 end = kStart + kVelocity * 2.0;
+  EXPECT_LT((toVec(s.positions[7]) - end).norm(), 1e-12);
+  EXPECT_LT((toVec(s.positions[6]) - (end + grip6)).norm(), 1e-12);
+
+  // A jump arrives within one tick (allow the tick already under way).
+  const Vec3 jump = end + Vec3(0.1, 0.0, -0.1);
+  const ros::WallTime jumped = ros::WallTime::now();
+  bool arrived = false;
+  double arrival = 0.0;
+  states.clear();
+  gripper.run([&](double) { return jump; }, 2.0, [&] {
+    for (const auto& st : states) {
+      if ((toVec(st->positions[7]) - jump).norm() < 1e-12) {
+        arrival = (ros::WallTime::now() - jumped).toSec();
+        return arrived = true;
+      }
+    }
+    return false;
+  });
+  ASSERT_TRUE(arrived);
+  EXPECT_LT(arrival, 2 * kTick + 0.02);
+
+  // The frame stops: after tf_timeout the pins hold their last position.
+  ASSERT_TRUE(cloth_sim_test::spinUntil([] { return false; }, 0.6));
+  ClothState a, b;
+  ASSERT_TRUE(client.waitState([](const ClothState&) { return true; }, 5.0, &a));
+  ASSERT_TRUE(cloth_sim_test::spinUntil([] { return false; }, 0.5));
+  ASSERT_TRUE(client.waitState([](const ClothState&) { return true; }, 5.0, &b));
+  EXPECT_EQ(toVec(a.positions[7]), toVec(b.positions[7]));
+  EXPECT_LT((toVec(b.positions[7]) - jump).norm(), 1e-12);
+  EXPECT_EQ(b.pinned, (std::vector<uint32_t>{0, 6, 7}));
+
+  // A frame that is no longer broadcast cannot take new pins.
+  res = pinToGripper({5}, {});
+  EXPECT_FALSE(res.success);
+  EXPECT_NE(res.message.find("test_gripper"), std::string::npos) << res.message;
+  EXPECT_NE(res.message.find("old"), std::string::npos) << res.message;
+
+  // Reset drops the attachment: the frame moves, node 7 stays at its scene pin.
+  ASSERT_TRUE(client.reset(&s));
+  gripper.run([&](double t) -> Vec3 { return jump + kVelocity * t; }, 1.0);
+  ASSERT_TRUE(client.waitState([](const ClothState&) { return true; }, 5.0, &s));
+  EXPECT_EQ(toVec(s.positions[7]), kStart);
+  EXPECT_EQ(s.pinned, (std::vector<uint32_t>{0, 7}));
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  ::testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "test_tf_pin");
+  ros::NodeHandle nh;
+  return RUN_ALL_TESTS();
+}
