@@ -67,7 +67,7 @@ class PerLinkMassSpringForce : public btDeformableMassSpringForce {
     forEachLink([&](const btSoftBody::Link& link, int j) {
       const btSoftBody::Node* a = link.m_n[0];
       const btSoftBody::Node* b = link.m_n[1];
-      btVector3 f = dampingResponse(a, b, b->m_v - a->m_v) * (scale * c_[j]);
+      btVector3 f = dampingForce(a, b, b->m_v - a->m_v, scale * c_[j]);
       force[a->index] += f;
       force[b->index] -= f;
     });
@@ -97,7 +97,7 @@ class PerLinkMassSpringForce : public btDeformableMassSpringForce {
     forEachLink([&](const btSoftBody::Link& link, int j) {
       const btSoftBody::Node* a = link.m_n[0];
       const btSoftBody::Node* b = link.m_n[1];
-      btVector3 f = dampingResponse(a, b, dv[b->index] - dv[a->index]) * (scale * c_[j]);
+      btVector3 f = dampingForce(a, b, dv[b->index] - dv[a->index], c_[j] * scale);
       df[a->index] += f;
       df[b->index] -= f;
     });
@@ -154,7 +154,7 @@ class PerLinkMassSpringForce : public btDeformableMassSpringForce {
     forEachLink([&](const btSoftBody::Link& link, int j) {
       const btSoftBody::Node* a = link.m_n[0];
       const btSoftBody::Node* b = link.m_n[1];
-      btVector3 f = dampingResponse(a, b, b->m_v - a->m_v) * (0.5 * c_[j]);
+      btVector3 f = dampingForce(a, b, b->m_v - a->m_v, 0.5 * c_[j]);
       energy -= (f.dot(a->m_v) - f.dot(b->m_v)) / dt;
     });
     return energy;
@@ -163,14 +163,18 @@ class PerLinkMassSpringForce : public btDeformableMassSpringForce {
   const BulletWork& work() const { return work_; }
 
  private:
-  /// Damping direction as Bullet: along the link at m_x, or the whole dv.
-  btVector3 dampingResponse(const btSoftBody::Node* a, const btSoftBody::Node* b,
-                            const btVector3& dv) const {
-    if (!along_spring_) return dv;
-    btVector3 d = b->m_x - a->m_x;
-    if (d.norm() <= SIMD_EPSILON) return dv;
-    btVector3 u = d.normalized();
-    return u * dv.dot(u);
+  /// Damping force s dv, or along the link at m_x: (s dv.d^) d^. Products in
+  /// Bullet's order, so that the stock and per-link forces agree to the bit.
+  btVector3 dampingForce(const btSoftBody::Node* a, const btSoftBody::Node* b,
+                         const btVector3& dv, btScalar s) const {
+    if (along_spring_) {
+      btVector3 d = b->m_x - a->m_x;
+      if (d.norm() > SIMD_EPSILON) {
+        btVector3 u = d.normalized();
+        return s * dv.dot(u) * u;
+      }
+    }
+    return s * dv;
   }
 
   template <class Fn>

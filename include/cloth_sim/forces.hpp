@@ -22,6 +22,16 @@ void assembleSystem(const Model& model, const VecX& x, const VecX& v, double a, 
                     bool project_compression, SystemMatrix& A, VecX& f,
                     const VecX* w = nullptr, VecX* dfdx_w = nullptr);
 
+/// Energy parts and max strain of a state, in one pass over the springs.
+struct EnergyParts {
+  double kinetic = 0.0;
+  double elastic = 0.0;
+  double potential = 0.0;   ///< -sum m g.x
+  double max_strain = 0.0;  ///< max |d|/L - 1 (0 without springs)
+  double total() const { return kinetic + elastic + potential; }
+};
+EnergyParts measureEnergy(const Model& model, const VecX& x, const VecX& v);
+
 double kineticEnergy(const Model& model, const VecX& v);
 double elasticEnergy(const Model& model, const VecX& x);
 double gravityEnergy(const Model& model, const VecX& x);  ///< -sum m g.x

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "cloth_sim/forces.hpp"
 #include "cloth_sim/model.hpp"
 #include "cloth_sim/scene.hpp"
 #include "cloth_sim/step_stats.hpp"
@@ -110,7 +111,15 @@ class Simulation {
   double pending_work_ = 0.0;  ///< work by events since the last step
   StepStats last_stats_;
   Stepper stepper_;
-  PinnedEnds pin_ends_;                 ///< reused per step
+  PinnedEnds pin_ends_;  ///< reused per step
+  EnergyParts measures_; ///< of the current state (energy check, stats)
+  VecX x_save_, v_save_, force_;
+  struct Checkpoint {
+    VecX x, v, x_prev, v_prev;
+    bool has_prev = false;
+    double t = 0.0, h_prev = 0.0, work = 0.0;
+    std::vector<std::pair<int, PinTarget>> pins;
+  } checkpoint_;
 };
 
 /// Writes an OBJ (vertices, vertex normals, two triangles per cell with

@@ -53,23 +53,57 @@ void assembleSystem(const Model& model, const VecX& x, const VecX& v, double a, 
   f.resize(x.size());
   addExternalForces(model, v, f);
   if (dfdx_w) dfdx_w->setZero(x.size());
+  // Force and Jacobian share the axis: one pass, one sqrt per spring.
+  const bool along = model.damping_model == DampingModel::AlongSpring;
   for (size_t k = 0; k < model.springs.size(); ++k) {
     const Spring& s = model.springs[k];
-    const Vec3 xi = x.segment<3>(3 * s.i), xj = x.segment<3>(3 * s.j);
-    const Vec3 vi = v.segment<3>(3 * s.i), vj = v.segment<3>(3 * s.j);
-    const SpringParams p = springParams(model, s);
-    const Vec3 fi = springForce(xi, xj, vi, vj, p);
+    const SpringGroup& g = model.groups[static_cast<int>(s.type)];
+    const Vec3 d = x.segment<3>(3 * s.j) - x.segment<3>(3 * s.i);
+    const Vec3 dv = v.segment<3>(3 * s.j) - v.segment<3>(3 * s.i);
+    const double l = d.norm();
+    const bool degenerate = !(l > kDegenerateLength * std::max(s.rest_length, 1.0));
+    const Vec3 u = degenerate ? s.rest_direction : Vec3(d / l);
+    const Mat3 uu = u * u.transpose();
+    Vec3 fi = g.stiffness * (l - s.rest_length) * u;
+    Mat3 K = g.stiffness * uu;
+    if (!degenerate) {
+      double t = 1.0 - s.rest_length / l;  // < 0 under compression
+      if (project_compression) t = std::max(t, 0.0);
+      if (t != 0.0) K += (g.stiffness * t) * (Mat3::Identity() - uu);
+    }
+    Mat3& S = A.coupling(static_cast<int>(k));
+    S.noalias() = b * K;
+    if (g.damping != 0.0) {
+      if (along) {
+        fi += (g.damping * dv.dot(u)) * u;
+        S.noalias() += (a * g.damping) * uu;
+      } else {
+        fi += g.damping * dv;
+        S.diagonal().array() += a * g.damping;
+      }
+    }
     f.segment<3>(3 * s.i) += fi;
     f.segment<3>(3 * s.j) -= fi;
-    const SpringJacobian J = springJacobian(xi, xj, vi, vj, p, project_compression);
-    A.coupling(static_cast<int>(k)) = a * J.D + b * J.K;
     if (dfdx_w) {
-      const Vec3 t = J.K * (w->segment<3>(3 * s.j) - w->segment<3>(3 * s.i));
+      const Vec3 t = K * (w->segment<3>(3 * s.j) - w->segment<3>(3 * s.i));
       dfdx_w->segment<3>(3 * s.i) += t;
       dfdx_w->segment<3>(3 * s.j) -= t;
     }
   }
   A.accumulateDiagonal(model.springs);
+}
+
+EnergyParts measureEnergy(const Model& model, const VecX& x, const VecX& v) {
+  EnergyParts e;
+  e.kinetic = kineticEnergy(model, v);
+  e.potential = gravityEnergy(model, x);
+  for (const Spring& s : model.springs) {
+    const double l = (x.segment<3>(3 * s.j) - x.segment<3>(3 * s.i)).norm();
+    const double stretch = l - s.rest_length;
+    e.elastic += 0.5 * model.groups[static_cast<int>(s.type)].stiffness * stretch * stretch;
+    e.max_strain = std::max(e.max_strain, l / s.rest_length - 1.0);
+  }
+  return e;
 }
 
 double kineticEnergy(const Model& model, const VecX& v) {

@@ -58,9 +58,10 @@ void Simulation::reset() {
   step_count_ = 0;
   next_event_ = 0;
   work_in_total_ = 0.0;
+  measures_ = measureEnergy(model_, x_, v_);
   last_stats_ = StepStats();
-  last_stats_.energy = energy();
-  last_stats_.max_strain = maxStrain();
+  last_stats_.energy = measures_.total();
+  last_stats_.max_strain = measures_.max_strain;
   stepper_ = Stepper(scene_.solver);
   pins_.clear();
   for (int p : scene_.pins) pins_[p] = PinTarget{position(p), Vec3::Zero(), 0.0};
@@ -87,27 +88,34 @@ StepStats Simulation::step(double h) {
   }
   applyDueEvents();
   // Checkpoint, so a step that fails even after recovery changes nothing.
-  const VecX x0 = x_, v0 = v_, xp = x_prev_, vp = v_prev_;
-  const bool had_prev = has_prev_;
-  const double t0 = t_, hp = h_prev_, w0 = work_in_total_;
-  const auto pins0 = pins_;
-
-  StepStats stats = stepWithRecovery(h, 0);
-  if (!stats.ok) {
-    x_ = x0;
-    v_ = v0;
-    x_prev_ = xp;
-    v_prev_ = vp;
-    has_prev_ = had_prev;
-    t_ = t0;
-    h_prev_ = hp;
-    work_in_total_ = w0;
-    pins_ = pins0;
-  } else {
-    ++step_count_;
+  // Member buffers: no allocation once sized.
+  if (scene_.solver.recovery) {
+    checkpoint_.x = x_;
+    checkpoint_.v = v_;
+    checkpoint_.x_prev = x_prev_;
+    checkpoint_.v_prev = v_prev_;
+    checkpoint_.has_prev = has_prev_;
+    checkpoint_.t = t_;
+    checkpoint_.h_prev = h_prev_;
+    checkpoint_.work = work_in_total_;
+    checkpoint_.pins.assign(pins_.begin(), pins_.end());
   }
-  stats.energy = energy();
-  stats.max_strain = maxStrain();
+  StepStats stats = stepWithRecovery(h, 0);
+  if (!stats.ok && scene_.solver.recovery) {
+    x_ = checkpoint_.x;
+    v_ = checkpoint_.v;
+    x_prev_ = checkpoint_.x_prev;
+    v_prev_ = checkpoint_.v_prev;
+    has_prev_ = checkpoint_.has_prev;
+    t_ = checkpoint_.t;
+    h_prev_ = checkpoint_.h_prev;
+    work_in_total_ = checkpoint_.work;
+    pins_ = std::map<int, PinTarget>(checkpoint_.pins.begin(), checkpoint_.pins.end());
+    measures_ = measureEnergy(model_, x_, v_);
+  }
+  if (stats.ok) ++step_count_;
+  stats.energy = measures_.total();
+  stats.max_strain = measures_.max_strain;
   stats.finite = x_.allFinite() && v_.allFinite();
   last_stats_ = stats;
   return stats;
@@ -119,14 +127,14 @@ double Simulation::energyScale() const {
     for (double m : model_.mass) weight += m;
     weight *= model_.gravity.norm() * std::max(size_, 1e-3);
   }
-  return kineticEnergy() + elasticEnergy() + weight + 1e-12;
+  return measures_.kinetic + measures_.elastic + weight + 1e-12;
 }
 
 StepStats Simulation::attempt(double h, bool reject_unconverged) {
-  const VecX x0 = x_, v0 = v_;
-  const bool check_energy = scene_.solver.recovery;
-  const double e0 = check_energy ? energy() : 0.0;
-  const double scale = check_energy ? energyScale() : 0.0;
+  x_save_ = x_;
+  v_save_ = v_;
+  const EnergyParts before = measures_;
+  const double scale = energyScale();
 
   pin_ends_.nodes.clear();
   pin_ends_.targets.clear();
@@ -136,7 +144,7 @@ StepStats Simulation::attempt(double h, bool reject_unconverged) {
     const Vec3 end = pin.position + drift * pin.velocity;
     pin_ends_.nodes.push_back(node);
     pin_ends_.targets.push_back(end);
-    pins_move = pins_move || end != x0.segment<3>(3 * node);
+    pins_move = pins_move || end != x_save_.segment<3>(3 * node);
   }
   History history;
   if (has_prev_) history = History{&x_prev_, &v_prev_, h_prev_};
@@ -144,14 +152,15 @@ StepStats Simulation::attempt(double h, bool reject_unconverged) {
   StepStats stats = stepper_.step(model_, h, pin_ends_, history, x_, v_);
 
   // Work the pins did: reaction at the end of the step times their travel.
+  // Only computed when a pin moved (static pins do no work).
   double work = 0.0;
   if (stats.ok && pins_move) {
-    VecX f;
-    computeForces(model_, x_, v_, f);
+    computeForces(model_, x_, v_, force_);
     for (int node : pin_ends_.nodes) {
-      const Vec3 reaction = model_.mass[node] * (v_.segment<3>(3 * node) - v0.segment<3>(3 * node)) / h -
-                            f.segment<3>(3 * node);
-      work += reaction.dot(x_.segment<3>(3 * node) - x0.segment<3>(3 * node));
+      const Vec3 reaction =
+          model_.mass[node] * (v_.segment<3>(3 * node) - v_save_.segment<3>(3 * node)) / h -
+          force_.segment<3>(3 * node);
+      work += reaction.dot(x_.segment<3>(3 * node) - x_save_.segment<3>(3 * node));
     }
   }
   if (stats.ok && reject_unconverged && !stats.linear_converged) {
@@ -159,20 +168,23 @@ StepStats Simulation::attempt(double h, bool reject_unconverged) {
     stats.failure = "linear solver did not reach tolerance (relative residual " +
                     fmt(stats.residual) + ")";
   }
-  if (stats.ok && check_energy) {
-    const double gain = energy() - e0 - std::max(work, 0.0);
-    if (!(gain <= 0.5 * scale)) {
+  EnergyParts after;
+  if (stats.ok) {
+    after = measureEnergy(model_, x_, v_);
+    const double gain = after.total() - before.total() - std::max(work, 0.0);
+    if (scene_.solver.recovery && !(gain <= 0.5 * scale)) {
       stats.ok = false;
       stats.failure = "energy jump of " + fmt(gain) + " J beyond the work input";
     }
   }
   if (!stats.ok) {
-    x_ = x0;
-    v_ = v0;
+    x_ = x_save_;
+    v_ = v_save_;
     return stats;
   }
-  x_prev_ = x0;
-  v_prev_ = v0;
+  measures_ = after;
+  std::swap(x_prev_, x_save_);  // x_prev_ = state before this step
+  std::swap(v_prev_, v_save_);
   h_prev_ = h;
   has_prev_ = true;
   t_ += h;
@@ -369,6 +381,7 @@ Status Simulation::setStiffness(const std::string& spring_type, double stiffness
     g.stiffness = stiffness;
     if (damping != -1.0) g.damping = damping;
   }
+  measures_ = measureEnergy(model_, x_, v_);
   return Status::success("set " + spring_type + " stiffness to " + fmt(stiffness));
 }
 

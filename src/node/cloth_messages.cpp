@@ -15,8 +15,10 @@ void TickStats::add(const cloth_sim::StepStats& s) {
   max_strain = s.max_strain;
   rejected += s.rejected;
   const bool step_ok = s.ok && s.finite;
-  if (failure.empty() && (!step_ok || !s.failure.empty())) {
+  if (!step_ok && ok) {  // the first real failure outranks a recovery note
     failure = s.failure.empty() ? std::string("state became non-finite") : s.failure;
+  } else if (failure.empty()) {
+    failure = s.failure;
   }
   ok = ok && step_ok;
 }

@@ -27,7 +27,7 @@ struct TickStats {
   double max_strain = 0.0;  ///< after the last step
   int rejected = 0;         ///< attempts rolled back by recovery
   bool ok = true;           ///< every step succeeded and stayed finite
-  std::string failure;      ///< first failure (or what recovery fixed)
+  std::string failure;      ///< first failure, else what recovery fixed
 
   /// Adds one Simulation::step result.
   void add(const cloth_sim::StepStats& s);

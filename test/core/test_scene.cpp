@@ -552,7 +552,11 @@ TEST(SceneRejects, UnknownNames) {
                               "along_spring, relative_velocity"));
   EXPECT_TRUE(overrideRejects(base, "solver.preconditioner=ilu",
                               "solver.preconditioner: unknown preconditioner 'ilu'",
-                              "none, block_jacobi"));
+                              "none, block_jacobi, cholesky"));
+  EXPECT_EQ(parseScene(base, {"solver.preconditioner=cholesky"}).solver.preconditioner,
+            Preconditioner::Cholesky);
+  EXPECT_EQ(parseScene(base, {"solver.preconditioner=none"}).solver.preconditioner,
+            Preconditioner::None);
   EXPECT_TRUE(overrideRejects(base, "solver.method=[newton]", "solver.method: expected a name",
                               "a sequence"));
 }

@@ -112,3 +112,53 @@ TEST(SpringForce, HookeanMagnitudeAndEnergy) {
 
 }  // namespace
 }  // namespace cloth_sim
+
+// The whole-cloth assembly fuses force and Jacobian for speed; it must agree
+// with the per-spring functions tested above.
+#include "cloth_sim/forces.hpp"
+#include "scene_builders.hpp"
+
+namespace cloth_sim {
+namespace {
+
+TEST(Assembly, MatchesPerSpringForcesAndJacobians) {
+  for (DampingModel dm : {DampingModel::AlongSpring, DampingModel::RelativeVelocity}) {
+    for (bool project : {true, false}) {
+      Scene s = test::hangingCloth(5);
+      s.damping_model = dm;
+      s.air_drag = 0.3;
+      const Model m = buildModel(s);
+      std::mt19937 rng(9);
+      std::uniform_real_distribution<double> u(-0.1, 0.1);
+      VecX x = m.rest_positions, v(x.size()), w(x.size());
+      for (int k = 0; k < x.size(); ++k) {
+        x[k] += u(rng);
+        v[k] = u(rng);
+        w[k] = u(rng);
+      }
+      x.segment<3>(3 * 7) = x.segment<3>(3 * 8);  // one zero-length spring
+      SystemMatrix A;
+      VecX f, dfdx_w, f_ref;
+      const double a = 0.01, b = 1e-4;
+      assembleSystem(m, x, v, a, b, project, A, f, &w, &dfdx_w);
+      computeForces(m, x, v, f_ref);
+      EXPECT_LE((f - f_ref).norm(), 1e-12 * f_ref.norm());
+      VecX dfdx_w_ref = VecX::Zero(x.size());
+      for (size_t k = 0; k < m.springs.size(); ++k) {
+        const Spring& sp = m.springs[k];
+        const SpringParams p = springParams(m, sp);
+        const SpringJacobian J = springJacobian(x.segment<3>(3 * sp.i), x.segment<3>(3 * sp.j),
+                                                v.segment<3>(3 * sp.i), v.segment<3>(3 * sp.j), p, project);
+        EXPECT_LE((A.coupling(static_cast<int>(k)) - (a * J.D + b * J.K)).norm(), 1e-12 * (1.0 + J.K.norm()));
+        const Vec3 t = J.K * (w.segment<3>(3 * sp.j) - w.segment<3>(3 * sp.i));
+        dfdx_w_ref.segment<3>(3 * sp.i) += t;
+        dfdx_w_ref.segment<3>(3 * sp.j) -= t;
+      }
+      EXPECT_LE((dfdx_w - dfdx_w_ref).norm(), 1e-12 * (1.0 + dfdx_w_ref.norm()));
+      EXPECT_NEAR(A.diag(0)(0, 0), m.mass[0] + a * 0.3, 1e-15);
+    }
+  }
+}
+
+}  // namespace
+}  // namespace cloth_sim

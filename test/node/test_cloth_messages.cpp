@@ -117,6 +117,7 @@ TEST(ClothMessages, TickStatsCombineTheSteps) {
   bad.failure = "non-finite position or velocity";
   tick.add(bad);
   EXPECT_FALSE(tick.ok);
+  EXPECT_EQ(tick.failure, "non-finite position or velocity");
 }
 
 }  // namespace
