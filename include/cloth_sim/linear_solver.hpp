@@ -55,6 +55,11 @@ class CholeskyFactor {
   bool factorize(const SystemMatrix& A, const std::vector<Spring>& springs,
                  const std::vector<char>& free);
   void solve(const VecX& r, VecX& z) const { z = ldlt_.solve(r); }
+  /// A factor of a recent matrix is still a very good preconditioner: it is
+  /// reused until a solve needs more than this many CG iterations.
+  static constexpr int kRefactorIterations = 10;
+  bool isValidFor(const std::vector<char>& free) const { return valid_ && free == free_; }
+  void invalidate() { valid_ = false; }
 
  private:
   void buildPattern(int num_nodes, const std::vector<Spring>& springs);
@@ -64,6 +69,8 @@ class CholeskyFactor {
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower> ldlt_;
   int num_nodes_ = -1;
   size_t num_springs_ = 0;
+  bool valid_ = false;
+  std::vector<char> free_;  ///< pin mask the factor was made for
 };
 
 /// Reused buffers, so a solve allocates nothing once sized.
@@ -71,6 +78,8 @@ struct CgWorkspace {
   VecX r, z, p, q;
   std::vector<Mat3> inv_diag;
   std::shared_ptr<CholeskyFactor> cholesky;  ///< made on first use
+  int last_iterations = 0;
+  int factorizations = 0;  ///< count, for the benchmark
 };
 
 /// Preconditioned conjugate gradient on the free DOFs. `x` is the warm start

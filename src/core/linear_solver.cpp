@@ -96,7 +96,9 @@ bool CholeskyFactor::factorize(const SystemMatrix& A, const std::vector<Spring>&
     }
   }
   ldlt_.factorize(matrix_);
-  return ldlt_.info() == Eigen::Success;
+  valid_ = ldlt_.info() == Eigen::Success;
+  free_ = free;
+  return valid_;
 }
 
 namespace {
@@ -150,6 +152,7 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
   }
 
   CgResult result;
+  bool fresh_factor = false;
   const double b_norm = freeNorm(b, free);
   if (!(b_norm > 0.0)) {
     x.setZero();
@@ -162,9 +165,14 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
     for (int i = 0; i < n; ++i) ws.inv_diag[i] = A.fullDiag(i).inverse();
   } else if (preconditioner == Preconditioner::Cholesky) {
     if (!ws.cholesky) ws.cholesky = std::make_shared<CholeskyFactor>();
-    if (!ws.cholesky->factorize(A, springs, free)) {
-      result.relative_residual = 1.0;
-      return result;  // not positive definite: the caller's recovery decides
+    fresh_factor = !ws.cholesky->isValidFor(free) ||
+                   ws.last_iterations > CholeskyFactor::kRefactorIterations;
+    if (fresh_factor) {
+      ++ws.factorizations;
+      if (!ws.cholesky->factorize(A, springs, free)) {
+        result.relative_residual = 1.0;
+        return result;  // not positive definite: the caller's recovery decides
+      }
     }
   }
 
@@ -203,7 +211,16 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
     ws.p = ws.z + (rz_new / rz) * ws.p;
     rz = rz_new;
   }
+  if (preconditioner == Preconditioner::Cholesky && !fresh_factor && r_norm > target) {
+    // The reused factor was too stale for this matrix: refactor and go on from x.
+    ws.cholesky->invalidate();
+    CgResult more = conjugateGradient(A, springs, free, b, x, preconditioner, tolerance,
+                                      max_iterations - k, ws);
+    more.iterations += k;
+    return more;
+  }
   result.iterations = k;
+  ws.last_iterations = k;
   result.relative_residual = r_norm / b_norm;
   result.converged = r_norm <= target;
   return result;

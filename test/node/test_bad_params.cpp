@@ -12,16 +12,16 @@
 
 namespace {
 
-struct Run {
+struct NodeRun {
   int exit_code = -1;  ///< -1: did not exit normally (a crash)
   std::string output;  ///< stdout and stderr
 };
 
 /// Runs cloth_sim_node as `name` (its parameters already on the master).
-Run runNode(const std::string& name, double timeout_s = 30.0) {
+NodeRun runNode(const std::string& name, double timeout_s = 30.0) {
   const std::string command = "timeout --preserve-status -s INT " + std::to_string(timeout_s) + " " +
                               CLOTH_SIM_NODE_PATH + " __name:=" + name + " 2>&1";
-  Run run;
+  NodeRun run;
   FILE* pipe = popen(command.c_str(), "r");
   if (!pipe) return run;
   char buf[512];
@@ -53,7 +53,7 @@ void setValidScene(const std::string& name) {
 }
 
 void expectRefused(const std::string& name, const std::vector<std::string>& must_contain) {
-  const Run run = runNode(name);
+  const NodeRun run = runNode(name);
   EXPECT_EQ(run.exit_code, 1) << name << " output:\n" << run.output;
   EXPECT_NE(run.output.find("FATAL"), std::string::npos) << run.output;
   for (const std::string& part : must_contain) {
@@ -64,7 +64,7 @@ void expectRefused(const std::string& name, const std::vector<std::string>& must
 
 TEST(BadParams, ValidParametersKeepTheNodeRunning) {
   setValidScene("good");
-  const Run run = runNode("good", 4.0);
+  const NodeRun run = runNode("good", 4.0);
   EXPECT_EQ(run.exit_code, 0) << "a valid node should run until interrupted:\n" << run.output;
   EXPECT_EQ(run.output.find("FATAL"), std::string::npos) << run.output;
 }

@@ -4,6 +4,7 @@
 
 #include "cloth_messages.hpp"
 #include "cloth_sim/scene.hpp"
+#include "node_params.hpp"
 
 namespace {
 

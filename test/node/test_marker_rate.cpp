@@ -26,10 +26,11 @@ TEST(MarkerRate, ClothMarkerArrivesAtRateWholeAndFinite) {
   ros::NodeHandle nh;
   std::vector<ros::WallTime> arrivals;
   std::vector<Marker::ConstPtr> markers;
-  ros::Subscriber sub = nh.subscribe<Marker>("/cloth_sim/cloth", 100, [&](const Marker::ConstPtr& m) {
-    arrivals.push_back(ros::WallTime::now());
-    markers.push_back(m);
-  });
+  ros::Subscriber sub = nh.subscribe<Marker>(
+      "/cloth_sim/cloth", 100, boost::function<void(const Marker::ConstPtr&)>([&](const Marker::ConstPtr& m) {
+        arrivals.push_back(ros::WallTime::now());
+        markers.push_back(m);
+      }));
   ASSERT_TRUE(cloth_sim_test::spinUntil([&] { return !arrivals.empty(); }, 30.0));
   // Let the connection settle, then count over a fixed window.
   cloth_sim_test::spinUntil([] { return false; }, 1.0);
@@ -72,7 +73,9 @@ TEST(MarkerRate, StateCarriesTheClothAndTheTickStatistics) {
   ros::NodeHandle nh;
   std::vector<cloth_sim::ClothState::ConstPtr> states;
   ros::Subscriber sub = nh.subscribe<cloth_sim::ClothState>(
-      "/cloth_sim/state", 100, [&](const cloth_sim::ClothState::ConstPtr& s) { states.push_back(s); });
+      "/cloth_sim/state", 100,
+      boost::function<void(const cloth_sim::ClothState::ConstPtr&)>(
+          [&](const cloth_sim::ClothState::ConstPtr& s) { states.push_back(s); }));
   ASSERT_TRUE(cloth_sim_test::spinUntil([&] { return states.size() >= 20; }, 30.0));
   const int steps = static_cast<int>(std::ceil((1.0 / kRate) / 0.004));  // solver.dt 0.004
   for (size_t k = 1; k < states.size(); ++k) {
@@ -96,8 +99,9 @@ TEST(MarkerRate, StateCarriesTheClothAndTheTickStatistics) {
 TEST(MarkerRate, StrainMarkerFollowsItsSubscriber) {
   ros::NodeHandle nh;
   std::vector<Marker::ConstPtr> markers;
-  ros::Subscriber sub = nh.subscribe<Marker>("/cloth_sim/strain", 10,
-                                             [&](const Marker::ConstPtr& m) { markers.push_back(m); });
+  ros::Subscriber sub = nh.subscribe<Marker>(
+      "/cloth_sim/strain", 10,
+      boost::function<void(const Marker::ConstPtr&)>([&](const Marker::ConstPtr& m) { markers.push_back(m); }));
   ASSERT_TRUE(cloth_sim_test::spinUntil([&] { return markers.size() >= 5; }, 30.0));
   for (const auto& m : markers) {
     ASSERT_EQ(m->points.size(), kPoints);

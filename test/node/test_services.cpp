@@ -253,11 +253,11 @@ TEST_F(ServicesTest, HigherStiffnessGivesSmallerStrain) {
   double soft_red = 0.0, stiff_red = 0.0;
   double* red = &soft_red;
   ros::Subscriber sub = client_.nh().subscribe<Marker>(
-      "/cloth_sim/strain", 5, [&](const Marker::ConstPtr& m) {
+      "/cloth_sim/strain", 5, boost::function<void(const Marker::ConstPtr&)>([&](const Marker::ConstPtr& m) {
         got_strain = true;
         strain_marker = *m;
         for (const auto& c : m->colors) *red = std::max<double>(*red, c.r);
-      });
+      }));
   ASSERT_TRUE(client_.reset());
   maxStrainBetween(0.5, 1.5);
   ASSERT_TRUE(got_strain) << "no ~strain while subscribed";
