@@ -19,10 +19,15 @@ class SystemMatrix {
  public:
   void resize(int num_nodes, int num_springs);
   int numNodes() const { return static_cast<int>(diag_.size()); }
-  /// Sets the diagonal blocks to mass_i * I and zeroes the couplings.
-  void reset(const std::vector<double>& mass);
-  Mat3& diag(int node) { return diag_[node]; }
-  Mat3& coupling(int spring) { return coupling_[spring]; }
+  /// Sets the node blocks to mass_i * I (+ extra_diagonal * I). Couplings are
+  /// then set by setCoupling for every spring.
+  void reset(const std::vector<double>& mass, double extra_diagonal = 0.0);
+  /// Sets spring k's block S and adds it to both nodes' full diagonal blocks.
+  void setCoupling(int spring, int i, int j, const Mat3& S) {
+    coupling_[spring] = S;
+    full_diag_[i] += S;
+    full_diag_[j] += S;
+  }
   const Mat3& diag(int node) const { return diag_[node]; }
   const Mat3& coupling(int spring) const { return coupling_[spring]; }
 
@@ -30,9 +35,7 @@ class SystemMatrix {
   void multiply(const std::vector<Spring>& springs, const std::vector<char>& free,
                 const VecX& x, VecX& y) const;
   /// Full diagonal block of node i including its springs' couplings.
-  /// Computed by accumulate(); valid until the next reset().
   const Mat3& fullDiag(int node) const { return full_diag_[node]; }
-  void accumulateDiagonal(const std::vector<Spring>& springs);
 
  private:
   std::vector<Mat3> diag_;

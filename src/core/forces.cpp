@@ -46,10 +46,7 @@ void assembleSystem(const Model& model, const VecX& x, const VecX& v, double a, 
                     VecX* dfdx_w) {
   const int n = model.numNodes();
   A.resize(n, static_cast<int>(model.springs.size()));
-  A.reset(model.mass);
-  if (model.air_drag > 0.0) {
-    for (int i = 0; i < n; ++i) A.diag(i) += a * model.air_drag * Mat3::Identity();
-  }
+  A.reset(model.mass, a * model.air_drag);
   f.resize(x.size());
   addExternalForces(model, v, f);
   if (dfdx_w) dfdx_w->setZero(x.size());
@@ -71,8 +68,7 @@ void assembleSystem(const Model& model, const VecX& x, const VecX& v, double a, 
       if (project_compression) t = std::max(t, 0.0);
       if (t != 0.0) K += (g.stiffness * t) * (Mat3::Identity() - uu);
     }
-    Mat3& S = A.coupling(static_cast<int>(k));
-    S.noalias() = b * K;
+    Mat3 S = b * K;
     if (g.damping != 0.0) {
       if (along) {
         fi += (g.damping * dv.dot(u)) * u;
@@ -82,6 +78,7 @@ void assembleSystem(const Model& model, const VecX& x, const VecX& v, double a, 
         S.diagonal().array() += a * g.damping;
       }
     }
+    A.setCoupling(static_cast<int>(k), s.i, s.j, S);
     f.segment<3>(3 * s.i) += fi;
     f.segment<3>(3 * s.j) -= fi;
     if (dfdx_w) {
@@ -90,7 +87,6 @@ void assembleSystem(const Model& model, const VecX& x, const VecX& v, double a, 
       dfdx_w->segment<3>(3 * s.j) -= t;
     }
   }
-  A.accumulateDiagonal(model.springs);
 }
 
 EnergyParts measureEnergy(const Model& model, const VecX& x, const VecX& v) {

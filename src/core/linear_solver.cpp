@@ -10,9 +10,11 @@ void SystemMatrix::resize(int num_nodes, int num_springs) {
   coupling_.resize(num_springs);
 }
 
-void SystemMatrix::reset(const std::vector<double>& mass) {
-  for (size_t i = 0; i < diag_.size(); ++i) diag_[i] = mass[i] * Mat3::Identity();
-  for (auto& c : coupling_) c.setZero();
+void SystemMatrix::reset(const std::vector<double>& mass, double extra_diagonal) {
+  for (size_t i = 0; i < diag_.size(); ++i) {
+    diag_[i] = (mass[i] + extra_diagonal) * Mat3::Identity();
+    full_diag_[i] = diag_[i];
+  }
 }
 
 void SystemMatrix::multiply(const std::vector<Spring>& springs, const std::vector<char>& free,
@@ -28,14 +30,6 @@ void SystemMatrix::multiply(const std::vector<Spring>& springs, const std::vecto
   }
   for (int i = 0; i < n; ++i) {
     if (!free[i]) y.segment<3>(3 * i).setZero();
-  }
-}
-
-void SystemMatrix::accumulateDiagonal(const std::vector<Spring>& springs) {
-  full_diag_ = diag_;
-  for (size_t s = 0; s < springs.size(); ++s) {
-    full_diag_[springs[s].i] += coupling_[s];
-    full_diag_[springs[s].j] += coupling_[s];
   }
 }
 
