@@ -255,7 +255,8 @@ std::string stockForceLimitation(const Model& model) {
 }
 
 struct BulletPeer::Impl {
-  // Declaration order is destruction order reversed: the world goes first.
+  // ~Impl takes the body out of the world and destroys the world before the
+  // members it points to (destroyed in reverse declaration order).
   btSoftBodyRigidBodyCollisionConfiguration collision_config;
   btCollisionDispatcher dispatcher{&collision_config};
   btDbvtBroadphase broadphase;

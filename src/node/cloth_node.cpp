@@ -355,7 +355,7 @@ void ClothNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
   stat.addf("step time (ms per tick)", "%.3f", 1e3 * w.step_s / ticks);
   stat.addf("tick time max (ms)", "%.3f", 1e3 * w.busy_max_s);
   stat.add("steps per tick", steps_per_tick_);
-  stat.addf("dt (s)", "%.6g", step_h_);
+  stat.addf("dt (s)", "%.17g", step_h_);
   stat.addf("CG iterations (per tick)", "%.1f", w.cg_iterations / ticks);
   stat.add("CG iterations max (per tick)", w.cg_max);
   stat.addf("residual max", "%.3g", w.residual_max);

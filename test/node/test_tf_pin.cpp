@@ -145,10 +145,10 @@ TEST(TfPin, PinnedNodesFollowAMovingFrameWithinOneTick) {
   EXPECT_LT(arrival, 2 * kTick + 0.02);
 
   // The frame stops: after tf_timeout the pins hold their last position.
-  ASSERT_TRUE(cloth_sim_test::spinUntil([] { return false; }, 0.6));
+  cloth_sim_test::spinUntil([] { return false; }, 0.6);  // just wait
   ClothState a, b;
   ASSERT_TRUE(client.waitState([](const ClothState&) { return true; }, 5.0, &a));
-  ASSERT_TRUE(cloth_sim_test::spinUntil([] { return false; }, 0.5));
+  cloth_sim_test::spinUntil([] { return false; }, 0.5);  // just wait
   ASSERT_TRUE(client.waitState([](const ClothState&) { return true; }, 5.0, &b));
   EXPECT_EQ(toVec(a.positions[7]), toVec(b.positions[7]));
   EXPECT_LT((toVec(b.positions[7]) - jump).norm(), 1e-12);
