@@ -3,7 +3,6 @@
 // here. Single-threaded spinning makes every service act between steps.
 #pragma once
 
-#include <memory>
 #include <string>
 #include <vector>
 
@@ -66,8 +65,8 @@ class ClothNode {
                       cloth_sim::SetStiffness::Response& res);
   bool onReset(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
 
-  /// Pins nodes (ints already range-checked or not: checked here), fixed or
-  /// attached to `frame`. Changes nothing unless it succeeds.
+  /// Pins nodes, fixed or attached to `frame` (see PinNodes.srv). Validates
+  /// everything first; changes nothing unless it succeeds.
   cloth_sim::Status pinNodes(const std::vector<long>& indices,
                              const std::vector<cloth_sim::Vec3>& positions,
                              const std::string& frame);

@@ -1,6 +1,7 @@
 // cloth_sim_node: the cloth simulation as a ROS node (see docs/node_api.md).
 // Bad parameters stop it here with one message naming the parameter, exit 1.
 #include <exception>
+#include <memory>
 
 #include <ros/ros.h>
 

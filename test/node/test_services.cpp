@@ -296,6 +296,48 @@ TEST_F(ServicesTest, SetStiffnessAllChangesEveryModelledGroup) {
   }
 }
 
+// ------------------------------------------------------ stability in use ----
+
+TEST_F(ServicesTest, StiffnessSwingsJumpsAndReleasesKeepTheClothFinite) {
+  std::vector<ClothState::ConstPtr> states;
+  std::vector<Marker::ConstPtr> markers;
+  ros::Subscriber state_sub = client_.nh().subscribe<ClothState>(
+      "/cloth_sim/state", 500,
+      boost::function<void(const ClothState::ConstPtr&)>(
+          [&](const ClothState::ConstPtr& s) { states.push_back(s); }));
+  ros::Subscriber marker_sub = client_.nh().subscribe<Marker>(
+      "/cloth_sim/cloth", 500,
+      boost::function<void(const Marker::ConstPtr&)>(
+          [&](const Marker::ConstPtr& m) { markers.push_back(m); }));
+  ClothState s;
+  auto wait = [&](double dt) {
+    ASSERT_TRUE(client_.waitState([](const ClothState&) { return true; }, 5.0, &s));
+    ASSERT_TRUE(client_.waitSimTime(s.sim_time + dt, &s));
+  };
+  ASSERT_TRUE(setStiffness("all", 100.0 * 500.0).success);  // 100x
+  wait(0.3);
+  ASSERT_TRUE(setStiffness("all", 500.0 / 100.0).success);  // then 10000x softer
+  wait(0.3);
+  ASSERT_TRUE(pin({63}, {Vec3(1.5, 0.5, 2.0)}).success);   // a pin target that jumps
+  wait(0.3);
+  ASSERT_TRUE(pin({63}, {Vec3(-1.0, -1.0, 0.0)}).success);
+  wait(0.3);
+  ASSERT_TRUE(setStiffness("all", 500.0 * 100.0).success);  // stiff while stretched far
+  wait(0.3);
+  ASSERT_TRUE(release({63, 7}).success);
+  wait(0.3);
+
+  ASSERT_GT(markers.size(), 40u);
+  for (const auto& m : markers) {
+    ASSERT_EQ(m->points.size(), 6u * 7 * 7);
+    for (const auto& p : m->points) ASSERT_TRUE(std::isfinite(p.x + p.y + p.z));
+  }
+  for (const auto& st : states) {
+    for (const auto& p : st->positions) ASSERT_TRUE(std::isfinite(p.x + p.y + p.z));
+    EXPECT_TRUE(st->ok) << "t " << st->sim_time << ": " << st->failure;
+  }
+}
+
 // --------------------------------------------------------- bad requests ----
 
 TEST_F(ServicesTest, BadPinRequestsAreRefusedAndChangeNothing) {
