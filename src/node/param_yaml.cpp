@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <regex>
 
 namespace cloth_sim_ros {
 namespace {
@@ -36,6 +37,14 @@ std::string number(double value) {
   return buf;
 }
 
+/// rosparam reads YAML 1.1, where `1.0e6` (no sign after e) is a string,
+/// while scene files are YAML 1.2, where it is a number: pass such strings
+/// through as numbers so a scene file means the same to the node and the CLI.
+bool isExponentNumber(const std::string& text) {
+  static const std::regex pattern(R"([-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+)");
+  return std::regex_match(text, pattern);
+}
+
 }  // namespace
 
 std::string toYaml(const XmlRpc::XmlRpcValue& value) {
@@ -48,8 +57,10 @@ std::string toYaml(const XmlRpc::XmlRpcValue& value) {
       return std::to_string(static_cast<int>(v));
     case XmlRpc::XmlRpcValue::TypeDouble:
       return number(static_cast<double>(v));
-    case XmlRpc::XmlRpcValue::TypeString:
-      return quote(static_cast<std::string>(v));
+    case XmlRpc::XmlRpcValue::TypeString: {
+      const std::string text = static_cast<std::string>(v);
+      return isExponentNumber(text) ? text : quote(text);
+    }
     case XmlRpc::XmlRpcValue::TypeArray: {
       std::string out = "[";
       for (int k = 0; k < v.size(); ++k) out += (k ? ", " : "") + toYaml(v[k]);

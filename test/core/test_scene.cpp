@@ -155,8 +155,8 @@ TEST(SceneFiles, DemoLoadsWithItsValues) {
   EXPECT_EQ(scene.air_drag, 0.0);
   EXPECT_EQ(scene.pins, (std::vector<int>{0, 23}));
   EXPECT_EQ(scene.solver.method, Method::ImplicitEuler);
-  EXPECT_EQ(scene.solver.dt, 0.004);
-  EXPECT_EQ(scene.solver.tolerance, 1e-6);
+  EXPECT_EQ(scene.solver.dt, 1.0 / 120.0);
+  EXPECT_EQ(scene.solver.tolerance, 1e-4);
   EXPECT_EQ(scene.solver.max_iterations, 500);
   EXPECT_EQ(scene.solver.preconditioner, Preconditioner::BlockJacobi);
   EXPECT_TRUE(scene.solver.project_compression);

@@ -57,8 +57,8 @@ XmlRpcValue demoTree() {
   t["air_drag"] = 0.0;
   t["pins"] = ints({0, 23});
   t["solver"]["method"] = std::string("implicit_euler");
-  t["solver"]["dt"] = 0.004;
-  t["solver"]["tolerance"] = 1.0e-6;
+  t["solver"]["dt"] = 0.008333333333333333;
+  t["solver"]["tolerance"] = 1.0e-4;
   t["solver"]["max_iterations"] = 500;
   t["solver"]["preconditioner"] = std::string("block_jacobi");
   t["solver"]["project_compression"] = true;
@@ -78,6 +78,11 @@ TEST(ParamYaml, ScalarsKeepTheirExactValues) {
   EXPECT_EQ(toYaml(XmlRpcValue(-std::numeric_limits<double>::infinity())), "-.inf");
   EXPECT_EQ(toYaml(XmlRpcValue(std::string("a \"b\"\n"))), "\"a \\\"b\\\"\\n\"");
   EXPECT_EQ(toYaml(doubles({1, 0.5})), "[1, 0.5]");
+  // rosparam's YAML 1.1 leaves 1.0e6 a string; scene files mean a number.
+  EXPECT_EQ(toYaml(XmlRpcValue(std::string("1.0e6"))), "1.0e6");
+  EXPECT_EQ(toYaml(XmlRpcValue(std::string("-2e-3"))), "-2e-3");
+  EXPECT_EQ(toYaml(XmlRpcValue(std::string("e6"))), "\"e6\"");
+  EXPECT_EQ(toYaml(XmlRpcValue(std::string("1.0e6x"))), "\"1.0e6x\"");
   EXPECT_EQ(toYaml(XmlRpcValue()), "null");
 }
 
