@@ -89,6 +89,7 @@ int main(int argc, char** argv) {
       for (const char* pre : {"block_jacobi", "cholesky"}) {
         auto o = grid;
         o.push_back(std::string("solver.preconditioner=") + pre);
+        o.push_back("solver.tolerance=1e-6");
         cases.push_back({"demo " + size + "x" + size + ", " + pre + " CG to 1e-6", demo, o});
       }
     }
