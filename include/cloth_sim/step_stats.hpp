@@ -11,6 +11,7 @@ struct StepStats {
   int newton_iterations = 0;  ///< nonlinear iterations (1 for implicit_euler)
   double newton_residual = 0.0;  ///< final ||g|| / ||g0|| (newton, bdf2)
   bool linear_converged = true;  ///< every CG solve met its tolerance
+  bool newton_converged = true;  ///< newton/bdf2: ||g|| met newton_tolerance (or round-off)
   double wall_time_s = 0.0;
   double assembly_s = 0.0;    ///< forces + Jacobians + matrix fill
   double solve_s = 0.0;       ///< linear solves

@@ -38,13 +38,15 @@ TEST(Pins, SitExactlyOnTargetsWhateverTheIterationCap) {
       for (int n = 0; n < 30; ++n) {
         const StepStats stats = sim.step();
         ASSERT_TRUE(stats.finite);
+        // A garbage solve may be refused (energy gain): then it says so and rolls back.
+        ASSERT_TRUE(stats.ok || !stats.failure.empty());
         for (const auto& [node, pin] : sim.pins()) {
           ASSERT_EQ(sim.position(node), pin.position) << "cap " << cap << " node " << node;
         }
       }
-      // Node 7 moved with its pin: 30 steps of 0.01 s at the given velocity.
+      // Node 7 moved with its pin at the given velocity for the time actually simulated.
       EXPECT_NEAR((sim.position(7) - sim.model().rest_positions.segment<3>(21)).norm(),
-                  0.3 * std::hypot(0.3, 0.2), 1e-12);
+                  sim.time() * std::hypot(0.3, 0.2), 1e-12);
       EXPECT_EQ(sim.position(0), sim.model().rest_positions.segment<3>(0));
     }
   }
