@@ -4,7 +4,8 @@
 //                   [--name NAME] [--set key=value]... [--repeats N] [--duration S]
 //                   [--sample S] [--ref-dt H] [--ref-preconditioner P] [--ref-cg-tol T]
 //                   [--ref-newton-tol T] [--ref-newton-iterations N]
-//                   [--solver-error-states K] [--append]
+//                   [--solver-error-states K] [--converged-preconditioner P]
+//                   [--no-reference] [--append]
 //
 // For every setting in FILE.csv (header: method,dt,tolerance,preconditioner,
 // newton_iterations,newton_tolerance; method bullet runs the Bullet peer) it
@@ -65,7 +66,8 @@ const char* const kUsage =
     "                       [--name NAME] [--set key=value]... [--repeats N] [--duration S]\n"
     "                       [--sample S] [--ref-dt H] [--ref-preconditioner P]\n"
     "                       [--ref-cg-tol T] [--ref-newton-tol T] [--ref-newton-iterations N]\n"
-    "                       [--solver-error-states K] [--append]\n";
+    "                       [--solver-error-states K] [--converged-preconditioner P]\n"
+    "                       [--no-reference] [--append]\n";
 
 struct UsageError {
   std::string message;
@@ -562,11 +564,13 @@ struct Options {
   double sample = 0.05;
   double ref_dt = 1.0 / 640.0;
   std::string ref_preconditioner = "block_jacobi";
-  double ref_cg_tol = 1e-12;
-  double ref_newton_tol = 1e-10;
-  int ref_newton_iterations = 10;
+  double ref_cg_tol = 1e-7;
+  double ref_newton_tol = 1e-6;
+  int ref_newton_iterations = 5;
   bool ref_projected = false;
-  int solver_error_states = 4;
+  bool no_reference = false;  ///< timing only: no reference, no errors
+  std::string converged_preconditioner = "cholesky";
+  int solver_error_states = 2;
   bool append = false;
 };
 
@@ -587,7 +591,7 @@ Options parseArgs(int argc, char** argv) {
     } else if (a == "--set") {
       o.overrides.push_back(value(i));
     } else if (a == "--repeats") {
-      o.repeats = static_cast<int>(parseCount(a, value(i), 1));
+      o.repeats = static_cast<int>(parseCount(a, value(i), 0));  // 0: errors only
     } else if (a == "--duration") {
       o.duration = parseNumber(a, value(i));
       if (!(o.duration > 0)) throw UsageError{"--duration: must be > 0"};
@@ -603,6 +607,10 @@ Options parseArgs(int argc, char** argv) {
       o.ref_cg_tol = parseNumber(a, value(i));
     } else if (a == "--ref-newton-tol") {
       o.ref_newton_tol = parseNumber(a, value(i));
+    } else if (a == "--converged-preconditioner") {
+      o.converged_preconditioner = value(i);
+    } else if (a == "--no-reference") {
+      o.no_reference = true;
     } else if (a == "--ref-projected") {
       o.ref_projected = true;
     } else if (a == "--ref-newton-iterations") {
@@ -725,12 +733,21 @@ int benchMain(const Options& o) {
   // Energy scale for the drift: weight times size (J).
   const double energy_scale = weight * std::max(base.gravity.norm(), 1e-12) * diagonal;
   const std::vector<Setting> settings = readSettings(o.settings_path);
+  // Reject a bad setting before hours of running, naming its row.
+  for (size_t k = 0; k < settings.size(); ++k) {
+    if (settings[k].isBullet()) continue;
+    try {
+      sceneFor(base, settings[k]);
+    } catch (const cloth_sim::SceneError& e) {
+      throw UsageError{o.settings_path + ": setting " + std::to_string(k + 1) + ": " + e.what()};
+    }
+  }
   // The one-step solves start from any state at any dt: projected Jacobian
   // (always positive definite), more Newton iterations.
   ConvergedSolve converged;
-  converged.preconditioner = parsePreconditioner(o.ref_preconditioner);
-  converged.cg_tolerance = o.ref_cg_tol;
-  converged.newton_tolerance = o.ref_newton_tol;
+  converged.preconditioner = parsePreconditioner(o.converged_preconditioner);
+  converged.cg_tolerance = 1e-10;
+  converged.newton_tolerance = 1e-8;
   converged.newton_max_iterations = 40;
   stepCount(o.duration, o.ref_dt / 2);  // rejects a reference dt that does not divide
 
@@ -744,33 +761,43 @@ int benchMain(const Options& o) {
   record.duration = o.duration;
   record.sample = o.sample;
   record.record = true;
-  Setting ref;
-  ref.method = "bdf2";
-  ref.dt = o.ref_dt;
-  ref.tolerance = o.ref_cg_tol;
-  ref.preconditioner = o.ref_preconditioner;
-  ref.newton_iterations = o.ref_newton_iterations;
-  ref.newton_tolerance = o.ref_newton_tol;
-  Scene ref_base = base;
-  ref_base.solver.max_iterations = 20000;
-  ref_base.solver.project_compression = o.ref_projected;
-  const Run ref_coarse = runCloth(ref_base, ref, record);
-  progress("reference dt " + csvNumber(ref.dt) + " cpu " + csvNumber(ref_coarse.cpu_s));
-  Setting ref_fine_setting = ref;
-  ref_fine_setting.dt = o.ref_dt / 2;
-  const Run ref_fine = runCloth(ref_base, ref_fine_setting, record);
-  progress("reference dt " + csvNumber(ref_fine_setting.dt) + " cpu " + csvNumber(ref_fine.cpu_s));
-  if (!ref_coarse.ok || !ref_fine.ok) {
-    std::fprintf(stderr, "cloth_sim_bench: %s: the reference run failed: %s\n", o.name.c_str(),
-                 (ref_coarse.ok ? ref_fine.failure : ref_coarse.failure).c_str());
-    return kExitReferenceNotConverged;
-  }
-  const std::vector<VecX>& x_ref = ref_fine.samples;
-  const double ref_diff = trajectoryError(ref_coarse.samples, x_ref, diagonal);
-  const double energy_ref = ref_fine.energy_final;
-
   std::vector<Row> rows;
-  {
+  std::vector<VecX> x_ref;
+  VecX x_ref_final;
+  double ref_diff = kNaN, energy_ref = kNaN;
+  if (!o.no_reference) {
+    Setting ref;
+    ref.method = "bdf2";
+    ref.dt = o.ref_dt;
+    ref.tolerance = o.ref_cg_tol;
+    ref.preconditioner = o.ref_preconditioner;
+    ref.newton_iterations = o.ref_newton_iterations;
+    ref.newton_tolerance = o.ref_newton_tol;
+    Scene ref_base = base;
+    ref_base.solver.max_iterations = 20000;
+    ref_base.solver.project_compression = o.ref_projected;
+    const Run ref_coarse = runCloth(ref_base, ref, record);
+    progress("reference dt " + csvNumber(ref.dt) + " cpu " + csvNumber(ref_coarse.cpu_s));
+    Setting ref_fine_setting = ref;
+    ref_fine_setting.dt = o.ref_dt / 2;
+    RunPlan fine_plan = record;
+    const long fine_steps = stepCount(o.duration, ref_fine_setting.dt);
+    for (int k = 1; k <= o.solver_error_states; ++k) {
+      fine_plan.snapshot_steps.push_back(fine_steps * k / (o.solver_error_states + 1));
+    }
+    const Run ref_fine = runCloth(ref_base, ref_fine_setting, fine_plan);
+    progress("reference dt " + csvNumber(ref_fine_setting.dt) + " cpu " +
+             csvNumber(ref_fine.cpu_s));
+    if (!ref_coarse.ok || !ref_fine.ok) {
+      std::fprintf(stderr, "cloth_sim_bench: %s: the reference run failed: %s\n", o.name.c_str(),
+                   (ref_coarse.ok ? ref_fine.failure : ref_coarse.failure).c_str());
+      return kExitReferenceNotConverged;
+    }
+    x_ref = ref_fine.samples;
+    x_ref_final = ref_fine.x_final;
+    ref_diff = trajectoryError(ref_coarse.samples, x_ref, diagonal);
+    energy_ref = ref_fine.energy_final;
+
     Row r;
     r.setting = ref_fine_setting;
     r.recorded = ref_fine;
@@ -779,6 +806,13 @@ int benchMain(const Options& o) {
     r.assembly_share = ref_fine.assembly_wall_s / ref_fine.wall_s;
     r.solve_share = ref_fine.solve_wall_s / ref_fine.wall_s;
     r.error = 0.0;
+    // The reference's own solver error per step, against a much tighter solve
+    // of the same step (Newton and CG 1000x tighter).
+    ConvergedSolve tighter = converged;
+    tighter.cg_tolerance = o.ref_cg_tol * 1e-3;
+    tighter.newton_tolerance = o.ref_newton_tol * 1e-3;
+    tighter.project_compression = o.ref_projected;
+    r.solver_error = solverError(ref_base, ref_fine_setting, ref_fine.snapshots, tighter, diagonal);
     r.is_reference = true;
     r.extra_overrides = {"solver.max_iterations=20000",
                          std::string("solver.project_compression=") +
@@ -800,12 +834,17 @@ int benchMain(const Options& o) {
     // The untimed run doubles as warm-up; it records the trajectory.
     r.recorded = runSetting(base, s, plan);
     Run& run = r.recorded;
-    if (run.ok) {
+    if (run.ok && !o.no_reference) {
       r.error = trajectoryError(run.samples, x_ref, diagonal);
-      r.error_final = std::sqrt(squaredNodeDistance(run.x_final, ref_fine.x_final) /
+      r.error_final = std::sqrt(squaredNodeDistance(run.x_final, x_ref_final) /
                                 model.numNodes()) / diagonal;
       r.energy_drift = (run.energy_final - energy_ref) / energy_scale;
+    }
+    double solver_error_cpu = 0.0;
+    if (run.ok) {
+      const double cpu0 = threadCpuSeconds();
       r.solver_error = solverError(base, s, run.snapshots, converged, diagonal);
+      solver_error_cpu = threadCpuSeconds() - cpu0;
       RunPlan timed;
       timed.duration = o.duration;
       std::vector<double> shares_a, shares_s;
@@ -825,7 +864,8 @@ int benchMain(const Options& o) {
     progress(std::to_string(index) + "/" + std::to_string(settings.size()) + " " + s.method +
              " dt " + csvNumber(s.dt) + " tol " + csvNumber(s.tolerance) + " " +
              s.preconditioner + " it " + std::to_string(s.newton_iterations) + " cpu " +
-             csvNumber(median(r.cpu)) + " error " + csvNumber(r.error) +
+             csvNumber(median(r.cpu)) + " error " + csvNumber(r.error) + " (solver error check " +
+             csvNumber(solver_error_cpu) + " s)" +
              (run.ok ? "" : " FAILED: " + run.failure));
     rows.push_back(std::move(r));
   }
@@ -834,10 +874,12 @@ int benchMain(const Options& o) {
   if (!out) throw UsageError{o.out_path + ": cannot write"};
   if (!o.append || out.tellp() == 0) out << kCsvHeader << '\n';
   for (const Row& r : rows) {
-    out << formatRow(o, model, r, o.ref_dt, ref_diff, o.overrides) << '\n';
+    out << formatRow(o, model, r, o.no_reference ? kNaN : o.ref_dt, ref_diff, o.overrides)
+        << '\n';
   }
   out.close();
 
+  if (o.no_reference) return kExitOk;
   // The reference must be far more accurate than anything it judges.
   double smallest = INFINITY;
   for (const Row& r : rows) {
