@@ -289,12 +289,13 @@ struct RunPlan {
   std::vector<long> snapshot_steps;  ///< steps (0-based) before which to keep the state
 };
 
-long stepCount(double duration, double dt) {
+/// Steps of dt in duration; dt must divide it (`what` names dt in the message).
+long stepCount(double duration, double dt, const std::string& what = "dt") {
   const double n = duration / dt;
   const long steps = std::lround(n);
   if (steps < 1 || std::abs(n - steps) > 1e-6 * n) {
-    throw UsageError{"dt " + std::to_string(dt) + " does not divide the duration " +
-                     std::to_string(duration)};
+    throw UsageError{what + " " + shortestNumber(dt) + " does not divide the duration " +
+                     shortestNumber(duration) + " s"};
   }
   return steps;
 }
@@ -697,8 +698,8 @@ std::string formatRow(const Options& o, const Model& model, const Row& r, double
   std::ostringstream out;
   const double steps = std::max<long>(run.steps, 1);
   out << csvText(o.name) << ',' << model.numNodes() << ',' << model.springs.size() << ','
-      << (r.is_reference ? "reference" : s.method) << ',' << csvNumber(s.dt) << ','
-      << csvNumber(s.tolerance) << ',' << (s.isBullet() ? "none" : s.preconditioner) << ','
+      << (r.is_reference ? "reference" : s.method) << ',' << shortestNumber(s.dt) << ','
+      << shortestNumber(s.tolerance) << ',' << (s.isBullet() ? "none" : s.preconditioner) << ','
       << s.newton_iterations << ',' << csvNumber(s.newton_tolerance) << ',' << (run.ok ? 1 : 0)
       << ',' << csvText(run.failure) << ',' << run.steps << ',' << r.cpu.size() << ','
       << csvNumber(cpu) << ',' << csvNumber(r.cpu.empty() ? kNaN : *std::min_element(r.cpu.begin(), r.cpu.end()))
@@ -735,6 +736,8 @@ int benchMain(const Options& o) {
   const std::vector<Setting> settings = readSettings(o.settings_path);
   // Reject a bad setting before hours of running, naming its row.
   for (size_t k = 0; k < settings.size(); ++k) {
+    stepCount(o.duration, settings[k].dt,
+              o.settings_path + ": setting " + std::to_string(k + 1) + ": dt");
     if (settings[k].isBullet()) continue;
     try {
       sceneFor(base, settings[k]);
@@ -749,7 +752,7 @@ int benchMain(const Options& o) {
   converged.cg_tolerance = 1e-10;
   converged.newton_tolerance = 1e-8;
   converged.newton_max_iterations = 40;
-  stepCount(o.duration, o.ref_dt / 2);  // rejects a reference dt that does not divide
+  stepCount(o.duration, o.ref_dt / 2, "--ref-dt / 2");
 
   auto progress = [&](const std::string& what) {
     std::fprintf(stderr, "progress %s %s\n", o.name.c_str(), what.c_str());
