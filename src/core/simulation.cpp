@@ -261,7 +261,14 @@ StepStats Simulation::stepWithRecovery(double h, int depth) {
     accumulate(part, &total);
     if (!part.ok) return total;
   }
-  total.failure = "recovered from: " + first.failure;
+  if (!total.linear_converged || !total.newton_converged) {
+    // A sub-step at the deepest halving was accepted short of its tolerance: say that.
+    total.failure = std::string(total.newton_converged ? "linear solver did not reach tolerance"
+                                                       : "newton did not converge") +
+                    " even after " + std::to_string(total.halvings) + " step halvings (accepted)";
+  } else {
+    total.failure = "recovered from: " + first.failure;
+  }
   return total;
 }
 
