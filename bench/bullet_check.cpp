@@ -20,12 +20,16 @@
 #include <vector>
 
 #include "bullet_peer.hpp"
+#include "command_line.hpp"
 #include "cloth_sim/model.hpp"
 #include "cloth_sim/scene.hpp"
 #include "cloth_sim/simulation.hpp"
 
 namespace {
 
+using cloth_sim::bench::parseCount;
+using cloth_sim::bench::parseNumber;
+using cloth_sim::bench::UsageError;
 using cloth_sim::Method;
 using cloth_sim::Model;
 using cloth_sim::Scene;
@@ -47,33 +51,10 @@ const char* const kUsage =
     "                        [--cg-tol T] [--line-search] [--stock-force] [--out FILE]\n"
     "       bullet_check verify [--quick]   (--quick: without the demo comparison)\n";
 
-struct UsageError {
-  std::string message;
-};
-
 double cpuSeconds() {
   timespec ts;
   clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
   return ts.tv_sec + 1e-9 * ts.tv_nsec;
-}
-
-double parseNumber(const std::string& flag, const std::string& text) {
-  char* end = nullptr;
-  const double value = std::strtod(text.c_str(), &end);
-  if (text.empty() || end != text.c_str() + text.size() || !std::isfinite(value))
-    throw UsageError{flag + ": expected a finite number, got '" + text + "'"};
-  return value;
-}
-
-long parseCount(const std::string& flag, const std::string& text, long min_value) {
-  char* end = nullptr;
-  errno = 0;
-  const long value = std::strtol(text.c_str(), &end, 10);
-  if (text.empty() || end != text.c_str() + text.size() || errno == ERANGE)
-    throw UsageError{flag + ": expected an integer, got '" + text + "'"};
-  if (value < min_value)
-    throw UsageError{flag + ": must be >= " + std::to_string(min_value) + ", got " + text};
-  return value;
 }
 
 /// The cloth's diagonal at rest: the length the benchmark's errors are divided by.

@@ -41,12 +41,16 @@
 #include "cloth_sim/scene.hpp"
 #include "cloth_sim/simulation.hpp"
 #include "cloth_sim/stepper.hpp"
+#include "command_line.hpp"
 #ifdef CLOTH_SIM_HAVE_BULLET
 #include "bullet_peer.hpp"
 #endif
 
 namespace {
 
+using cloth_sim::bench::parseCount;
+using cloth_sim::bench::parseNumber;
+using cloth_sim::bench::UsageError;
 using cloth_sim::Method;
 using cloth_sim::Model;
 using cloth_sim::Preconditioner;
@@ -69,30 +73,7 @@ const char* const kUsage =
     "                       [--solver-error-states K] [--converged-preconditioner P]\n"
     "                       [--no-reference] [--append]\n";
 
-struct UsageError {
-  std::string message;
-};
-
 // ------------------------------------------------------------- parsing ----
-
-double parseNumber(const std::string& what, const std::string& text) {
-  char* end = nullptr;
-  const double value = std::strtod(text.c_str(), &end);
-  if (text.empty() || end != text.c_str() + text.size() || !std::isfinite(value))
-    throw UsageError{what + ": expected a finite number, got '" + text + "'"};
-  return value;
-}
-
-long parseCount(const std::string& what, const std::string& text, long min_value) {
-  char* end = nullptr;
-  errno = 0;
-  const long value = std::strtol(text.c_str(), &end, 10);
-  if (text.empty() || end != text.c_str() + text.size() || errno == ERANGE)
-    throw UsageError{what + ": expected an integer, got '" + text + "'"};
-  if (value < min_value)
-    throw UsageError{what + ": must be >= " + std::to_string(min_value) + ", got " + text};
-  return value;
-}
 
 std::vector<std::string> splitCsvLine(const std::string& line) {
   std::vector<std::string> fields;

@@ -19,6 +19,14 @@ int markerPointOf(const cloth_sim::Model& model, int node) {
 
 cloth_sim::Vec3 toVec(const geometry_msgs::Point& p) { return {p.x, p.y, p.z}; }
 
+geometry_msgs::Point toPoint(const cloth_sim::Vec3& v) {
+  geometry_msgs::Point p;
+  p.x = v.x();
+  p.y = v.y();
+  p.z = v.z();
+  return p;
+}
+
 bool spinUntil(const std::function<bool()>& done, double timeout_s) {
   const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(timeout_s);
   while (ros::ok() && !done() && ros::WallTime::now() < deadline) {

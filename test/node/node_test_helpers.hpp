@@ -25,6 +25,7 @@ cloth_sim::Scene smallScene();
 /// Where node `node` appears in a TRIANGLE_LIST built from `model` (first occurrence).
 int markerPointOf(const cloth_sim::Model& model, int node);
 cloth_sim::Vec3 toVec(const geometry_msgs::Point& p);
+geometry_msgs::Point toPoint(const cloth_sim::Vec3& v);
 
 /// Spins until `done()` or `timeout_s` of wall time; returns done().
 bool spinUntil(const std::function<bool()>& done, double timeout_s);

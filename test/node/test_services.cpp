@@ -17,6 +17,7 @@ using cloth_sim::ClothState;
 using cloth_sim::Vec3;
 using cloth_sim_test::NodeClient;
 using cloth_sim_test::markerPointOf;
+using cloth_sim_test::toPoint;
 using cloth_sim_test::toVec;
 using visualization_msgs::Marker;
 
@@ -43,13 +44,7 @@ class ServicesTest : public ::testing::Test {
                                     const std::string& frame = "") {
     cloth_sim::PinNodes srv;
     srv.request.indices = indices;
-    for (const Vec3& p : positions) {
-      geometry_msgs::Point q;
-      q.x = p.x();
-      q.y = p.y();
-      q.z = p.z();
-      srv.request.positions.push_back(q);
-    }
+    for (const Vec3& p : positions) srv.request.positions.push_back(toPoint(p));
     srv.request.frame_id = frame;
     EXPECT_TRUE(ros::service::call("/cloth_sim/pin_nodes", srv));
     return srv.response;

@@ -14,6 +14,7 @@
 
 using cloth_sim::ClothState;
 using cloth_sim::Vec3;
+using cloth_sim_test::toPoint;
 using cloth_sim_test::toVec;
 
 namespace {
@@ -58,13 +59,7 @@ cloth_sim::PinNodes::Response pinToGripper(const std::vector<uint32_t>& indices,
                                            const std::vector<Vec3>& offsets) {
   cloth_sim::PinNodes srv;
   srv.request.indices = indices;
-  for (const Vec3& p : offsets) {
-    geometry_msgs::Point q;
-    q.x = p.x();
-    q.y = p.y();
-    q.z = p.z();
-    srv.request.positions.push_back(q);
-  }
+  for (const Vec3& p : offsets) srv.request.positions.push_back(toPoint(p));
   srv.request.frame_id = "test_gripper";
   EXPECT_TRUE(ros::service::call("/cloth_sim/pin_nodes", srv));
   return srv.response;
