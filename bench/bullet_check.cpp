@@ -343,7 +343,8 @@ void checkConvergedBackwardEuler() {
                                   "springs.stretch.damping=0", "springs.shear.damping=0",
                                   "springs.bend.damping=0", "solver.method=newton",
                                   "solver.newton_tolerance=1e-13", "solver.tolerance=1e-13",
-                                  "solver.max_iterations=5000", "solver.newton_max_iterations=50"});
+                                  "solver.max_iterations=5000", "solver.newton_max_iterations=50",
+                                  "solver.dt=0.004"});
   Simulation sim(s);
   BulletSettings b;
   b.dt = s.solver.dt;
