@@ -46,6 +46,9 @@ class Stepper {
   /// g = M (v1 - av) - beta h f(ax + beta h v1, v1) on free nodes; returns ||g||.
   double residual(const Model& model, double bh, const VecX& ax, const VecX& av,
                   const VecX& v1, VecX& x1, VecX& g);
+  /// The same g from forces f already evaluated at (ax + beta h v1, v1).
+  double residualFromForces(const Model& model, double bh, const VecX& av, const VecX& v1,
+                            const VecX& f, VecX& g) const;
 
   Scene::Solver settings_;
   std::vector<char> free_;
@@ -53,6 +56,7 @@ class Stepper {
   SystemMatrix A_;
   CgWorkspace cg_;
   VecX f_, rhs_, dv_, dfdx_v_, g_, x_trial_, v_trial_, g_trial_, delta_, ax_, av_, pinned_dv_;
+  VecX x_best_, v_best_, g_best_;  ///< the line search's best trial
 };
 
 }  // namespace cloth_sim

@@ -108,10 +108,15 @@ double Stepper::residual(const Model& model, double bh, const VecX& ax, const Ve
                          const VecX& v1, VecX& x1, VecX& g) {
   x1 = ax + bh * v1;
   computeForces(model, x1, v1, f_);
+  return residualFromForces(model, bh, av, v1, f_, g);
+}
+
+double Stepper::residualFromForces(const Model& model, double bh, const VecX& av,
+                                   const VecX& v1, const VecX& f, VecX& g) const {
   g.resize(v1.size());
   for (int i = 0; i < model.numNodes(); ++i) {
     g.segment<3>(3 * i) = model.mass[i] * (v1.segment<3>(3 * i) - av.segment<3>(3 * i)) -
-                          bh * f_.segment<3>(3 * i);
+                          bh * f.segment<3>(3 * i);
   }
   zeroPinned(free_, g);
   return g.norm();
@@ -131,8 +136,12 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
   }
   VecX& v1 = v;
   v1 = v_trial_;
+  // Every iterate's forces come from one evaluation: the assembly gives f at
+  // the start, the line search's accepted trial the g of the next iterate.
   auto t0 = Clock::now();
-  const double g0 = residual(model, bh, ax_, av_, v1, x, g_);
+  x = ax_ + bh * v1;
+  assembleSystem(model, x, v1, bh, bh * bh, settings_.project_compression, A_, f_);
+  const double g0 = residualFromForces(model, bh, av_, v1, f_, g_);
   double g_norm = g0;
   stats.assembly_s += secondsSince(t0);
   // ||g|| is only known to the round-off of its terms (M v, and b h f with an
@@ -155,9 +164,11 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
   stats.linear_converged = true;
   int it = 0;
   while (g_norm > target && it < max_iterations && std::isfinite(g_norm)) {
-    t0 = Clock::now();
-    assembleSystem(model, x, v1, bh, bh * bh, settings_.project_compression, A_, f_);
-    stats.assembly_s += secondsSince(t0);
+    if (it > 0) {  // the first iterate was assembled above
+      t0 = Clock::now();
+      assembleSystem(model, x, v1, bh, bh * bh, settings_.project_compression, A_, f_);
+      stats.assembly_s += secondsSince(t0);
+    }
     t0 = Clock::now();
     rhs_ = -g_;
     delta_.setZero(v1.size());
@@ -172,18 +183,22 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
 
     // Backtracking on ||g||: keep the best of at most 10 halvings.
     t0 = Clock::now();
-    double alpha = 1.0, best_alpha = 1.0, best_norm = INFINITY;
+    double alpha = 1.0, best_norm = INFINITY;
     for (int ls = 0; ls < 10; ++ls, alpha *= 0.5) {
       v_trial_ = v1 + alpha * delta_;
       const double trial = residual(model, bh, ax_, av_, v_trial_, x_trial_, g_trial_);
-      if (trial < best_norm) {
+      if (trial < best_norm) {  // keep the best trial's state, not just its alpha
         best_norm = trial;
-        best_alpha = alpha;
+        v_best_.swap(v_trial_);
+        x_best_.swap(x_trial_);
+        g_best_.swap(g_trial_);
       }
       if (trial <= (1.0 - 1e-4 * alpha) * g_norm) break;
     }
-    v1 += best_alpha * delta_;
-    g_norm = residual(model, bh, ax_, av_, v1, x, g_);
+    v1 = v_best_;
+    x = x_best_;
+    g_.swap(g_best_);
+    g_norm = best_norm;
     stats.assembly_s += secondsSince(t0);
   }
   stats.newton_iterations = it;
