@@ -60,31 +60,33 @@ void assembleSystem(const Model& model, const VecX& x, const VecX& v, double a, 
     const double l = d.norm();
     const bool degenerate = !(l > kDegenerateLength * std::max(s.rest_length, 1.0));
     const Vec3 u = degenerate ? s.rest_direction : Vec3(d / l);
-    const Mat3 uu = u * u.transpose();
+    // K = k (1 - t) u u^T + k t I with t = 1 - L/l (clamped at 0 under
+    // compression when projecting; 0 when degenerate): kept as two scalars,
+    // so S = b K (+ damping) is one outer product and a diagonal shift.
+    double t = degenerate ? 0.0 : 1.0 - s.rest_length / l;
+    if (project_compression) t = std::max(t, 0.0);
+    const double k_iso = g.stiffness * t, k_axis = g.stiffness - k_iso;
     Vec3 fi = g.stiffness * (l - s.rest_length) * u;
-    Mat3 K = g.stiffness * uu;
-    if (!degenerate) {
-      double t = 1.0 - s.rest_length / l;  // < 0 under compression
-      if (project_compression) t = std::max(t, 0.0);
-      if (t != 0.0) K += (g.stiffness * t) * (Mat3::Identity() - uu);
-    }
-    Mat3 S = b * K;
+    double s_iso = b * k_iso, s_axis = b * k_axis;
     if (g.damping != 0.0) {
       if (along) {
         fi += (g.damping * dv.dot(u)) * u;
-        S.noalias() += (a * g.damping) * uu;
+        s_axis += a * g.damping;
       } else {
         fi += g.damping * dv;
-        S.diagonal().array() += a * g.damping;
+        s_iso += a * g.damping;
       }
     }
+    Mat3 S = (s_axis * u) * u.transpose();
+    S.diagonal().array() += s_iso;
     A.setCoupling(static_cast<int>(k), s.i, s.j, S);
     f.segment<3>(3 * s.i) += fi;
     f.segment<3>(3 * s.j) -= fi;
     if (dfdx_w) {
-      const Vec3 t = K * (w->segment<3>(3 * s.j) - w->segment<3>(3 * s.i));
-      dfdx_w->segment<3>(3 * s.i) += t;
-      dfdx_w->segment<3>(3 * s.j) -= t;
+      const Vec3 dw = w->segment<3>(3 * s.j) - w->segment<3>(3 * s.i);
+      const Vec3 kdw = k_iso * dw + (k_axis * u.dot(dw)) * u;
+      dfdx_w->segment<3>(3 * s.i) += kdw;
+      dfdx_w->segment<3>(3 * s.j) -= kdw;
     }
   }
 }
