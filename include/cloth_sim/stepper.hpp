@@ -2,6 +2,7 @@
 // end positions. Buffers live here, so a step allocates nothing once sized.
 #pragma once
 
+#include <optional>
 #include <vector>
 
 #include "cloth_sim/linear_solver.hpp"
@@ -32,8 +33,12 @@ class Stepper {
   /// Advances x and v in place by h. Fills the solver parts of StepStats
   /// (iterations, residuals, timings, ok/failure); energy and strain are the
   /// caller's. On failure x and v hold garbage: the caller rolls back.
+  /// `as`, when given, overrides the scene's method for this step: the
+  /// recovery retries a bdf2 step as backward Euler (Method::Newton) and, as
+  /// a last resort, takes a linearized step (Method::ImplicitEuler).
   StepStats step(const Model& model, double h, const PinnedEnds& pins,
-                 const History& history, VecX& x, VecX& v);
+                 const History& history, VecX& x, VecX& v,
+                 std::optional<Method> as = std::nullopt);
 
  private:
   StepStats implicitEuler(const Model& model, double h, VecX& x, VecX& v);

@@ -30,11 +30,11 @@ void Stepper::setPins(const Model& model, const PinnedEnds& pins) {
 }
 
 StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
-                        const History& history, VecX& x, VecX& v) {
+                        const History& history, VecX& x, VecX& v, std::optional<Method> as) {
   const auto start = Clock::now();
   setPins(model, pins);
   StepStats stats;
-  switch (settings_.method) {
+  switch (as.value_or(settings_.method)) {
     case Method::ImplicitEuler:
       stats = implicitEuler(model, h, x, v);
       break;

@@ -180,7 +180,7 @@ TEST_P(HardCase, PassesOrFailsLoudly) {
   Vec3 last_cm_x = centreOfMass(sim, sim.positions()), last_cm_v = Vec3::Zero();
   int last_substeps = 1;
 
-  long rejected = 0, substeps = 0;
+  long rejected = 0, substeps = 0, linearized = 0, order_reduced = 0;
   int halvings = 0;
   double previous = e0, max_after_transient = 0.0;
   for (long n = 0; n < steps; ++n) {
@@ -216,6 +216,8 @@ TEST_P(HardCase, PassesOrFailsLoudly) {
     }
     rejected += stats.rejected;
     substeps += stats.substeps;
+    linearized += stats.linearized;
+    order_reduced += stats.order_reduced;
     halvings = std::max(halvings, stats.halvings);
     last_substeps = stats.substeps;
 
@@ -247,9 +249,13 @@ TEST_P(HardCase, PassesOrFailsLoudly) {
     }
     if (!implicit) continue;
 
-    // Every solve met its tolerance (recovery splits a step whose solve did not).
+    // Every linear solve met its tolerance (recovery splits a step whose solve
+    // did not), and so did every Newton iteration, except in sub-steps that
+    // the recovery took as linearized backward-Euler steps because Newton
+    // could not converge even at the deepest halving (counted, reported).
     ASSERT_TRUE(stats.linear_converged) << "step " << n << ": " << stats.failure;
-    ASSERT_TRUE(stats.newton_converged) << "step " << n << ": " << stats.failure;
+    ASSERT_TRUE(stats.newton_converged || stats.linearized > 0)
+        << "step " << n << ": " << stats.failure;
 
     // Energy: without inputs it never increases (to round-off); with moving
     // pins or stiffness events it stays below the initial energy plus the
@@ -287,9 +293,10 @@ TEST_P(HardCase, PassesOrFailsLoudly) {
   const double wall =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
   std::printf("[ hard     ] %s %s: passed %ld steps, %ld substeps, %ld rejected, %d halvings max, "
-              "strain %.3g after the transient, %.2f s\n",
+              "%ld linearized, %ld bdf2 steps as backward Euler, strain %.3g after the "
+              "transient, %.2f s\n",
               run.file.c_str(), toString(run.method), steps, substeps, rejected, halvings,
-              max_after_transient, wall);
+              linearized, order_reduced, max_after_transient, wall);
 }
 
 std::vector<HardRun> allRuns() {
