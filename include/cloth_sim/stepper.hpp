@@ -46,8 +46,19 @@ class Stepper {
   /// Newton with a backtracking line search on ||g||.
   StepStats newtonSolve(const Model& model, double h, double beta, const VecX& ax,
                         const VecX& av, int max_iterations, VecX& x, VecX& v);
+  /// Newton's merit function: 1/2 |v1 - av|_M^2 + U(x1) + b h R(v1), with U
+  /// elastic + gravity potential and R the Rayleigh dissipation (drag, spring
+  /// damping with the spring axis held): its gradient in v1 is g, but for the
+  /// axis's own motion in the along-spring damping.
+  double incrementalPotential(const Model& model, double bh, const VecX& av, const VecX& v1,
+                              const VecX& x1) const;
   StepStats symplecticEuler(const Model& model, double h, VecX& x, VecX& v);
   void setPins(const Model& model, const PinnedEnds& pins);
+  /// CG on A_ x = b (x: warm start and answer) within settings_.max_iterations;
+  /// with the Cholesky preconditioner a reused factor gets kStaleFactorIterations
+  /// before it is replaced by a fresh one.
+  CgResult solveLinear(const Model& model, const VecX& b, VecX& x);
+  static constexpr int kStaleFactorIterations = 30;
   /// g = M (v1 - av) - beta h f(ax + beta h v1, v1) on free nodes; returns ||g||.
   double residual(const Model& model, double bh, const VecX& ax, const VecX& av,
                   const VecX& v1, VecX& x1, VecX& g);
