@@ -58,7 +58,7 @@ class Stepper {
   /// with the Cholesky preconditioner a reused factor gets kStaleFactorIterations
   /// before it is replaced by a fresh one.
   CgResult solveLinear(const Model& model, const VecX& b, VecX& x);
-  static constexpr int kStaleFactorIterations = 30;
+  static constexpr int kStaleFactorIterations = 15;
   /// g = M (v1 - av) - beta h f(ax + beta h v1, v1) on free nodes; returns ||g||.
   double residual(const Model& model, double bh, const VecX& ax, const VecX& av,
                   const VecX& v1, VecX& x1, VecX& g);
