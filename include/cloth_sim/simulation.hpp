@@ -88,9 +88,14 @@ class Simulation {
   void applyDueEvents();
   Status applyEvent(const SceneEvent& event);
   /// One step of h, no recovery; on failure the state is left as it was.
-  /// reject_unconverged: a linear solve short of its tolerance is a failure.
-  StepStats attempt(double h, bool reject_unconverged);
-  /// attempt(h), and on rejection two half steps, down to max_halvings deep.
+  /// reject_linear / reject_newton: a linear solve / Newton iteration short of
+  /// its tolerance is a failure. as: see Stepper::step.
+  StepStats attempt(double h, bool reject_linear, bool reject_newton,
+                    std::optional<Method> as = std::nullopt);
+  /// attempt(h); a bdf2 step that gains energy is retried as backward Euler;
+  /// on rejection two half steps, down to max_halvings deep; there, a
+  /// newton/bdf2 step whose Newton iteration does not converge is taken as a
+  /// linearized backward-Euler step.
   StepStats stepWithRecovery(double h, int depth);
   /// Energy scale for the blow-up test: kinetic + elastic + m|g| times size.
   double energyScale() const;
@@ -110,6 +115,7 @@ class Simulation {
   double work_in_total_ = 0.0;
   double pending_work_ = 0.0;  ///< work by events since the last step
   StepStats last_stats_;
+  bool energy_rejected_ = false;  ///< the last attempt failed on the energy check alone
   Stepper stepper_;
   PinnedEnds pin_ends_;  ///< reused per step
   EnergyParts measures_; ///< of the current state (energy check, stats)

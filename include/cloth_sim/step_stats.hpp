@@ -22,6 +22,13 @@ struct StepStats {
   int substeps = 1;           ///< steps actually taken (> 1 after recovery)
   int halvings = 0;           ///< deepest step halving used by recovery
   int rejected = 0;           ///< attempts rolled back
+  /// newton/bdf2 sub-steps whose Newton iteration did not converge even at the
+  /// deepest halving, taken instead as one linearized backward-Euler step
+  /// (implicit_euler's step, its linear solve to tolerance)
+  int linearized = 0;
+  /// bdf2 steps that would have gained energy, retried as backward Euler
+  /// (order 1) at the same size before any halving
+  int order_reduced = 0;
   bool ok = true;             ///< false: the step failed and the state was rolled back
   std::string failure;        ///< why, when !ok (or what recovery fixed)
 };

@@ -2,6 +2,7 @@
 // end positions. Buffers live here, so a step allocates nothing once sized.
 #pragma once
 
+#include <optional>
 #include <vector>
 
 #include "cloth_sim/linear_solver.hpp"
@@ -32,8 +33,12 @@ class Stepper {
   /// Advances x and v in place by h. Fills the solver parts of StepStats
   /// (iterations, residuals, timings, ok/failure); energy and strain are the
   /// caller's. On failure x and v hold garbage: the caller rolls back.
+  /// `as`, when given, overrides the scene's method for this step: the
+  /// recovery retries a bdf2 step as backward Euler (Method::Newton) and, as
+  /// a last resort, takes a linearized step (Method::ImplicitEuler).
   StepStats step(const Model& model, double h, const PinnedEnds& pins,
-                 const History& history, VecX& x, VecX& v);
+                 const History& history, VecX& x, VecX& v,
+                 std::optional<Method> as = std::nullopt);
 
  private:
   StepStats implicitEuler(const Model& model, double h, VecX& x, VecX& v);
@@ -41,8 +46,19 @@ class Stepper {
   /// Newton with a backtracking line search on ||g||.
   StepStats newtonSolve(const Model& model, double h, double beta, const VecX& ax,
                         const VecX& av, int max_iterations, VecX& x, VecX& v);
+  /// Newton's merit function: 1/2 |v1 - av|_M^2 + U(x1) + b h R(v1), with U
+  /// elastic + gravity potential and R the Rayleigh dissipation (drag, spring
+  /// damping with the spring axis held): its gradient in v1 is g, but for the
+  /// axis's own motion in the along-spring damping.
+  double incrementalPotential(const Model& model, double bh, const VecX& av, const VecX& v1,
+                              const VecX& x1) const;
   StepStats symplecticEuler(const Model& model, double h, VecX& x, VecX& v);
   void setPins(const Model& model, const PinnedEnds& pins);
+  /// CG on A_ x = b (x: warm start and answer) within settings_.max_iterations;
+  /// with the Cholesky preconditioner a reused factor gets kStaleFactorIterations
+  /// before it is replaced by a fresh one.
+  CgResult solveLinear(const Model& model, const VecX& b, VecX& x);
+  static constexpr int kStaleFactorIterations = 15;
   /// g = M (v1 - av) - beta h f(ax + beta h v1, v1) on free nodes; returns ||g||.
   double residual(const Model& model, double bh, const VecX& ax, const VecX& av,
                   const VecX& v1, VecX& x1, VecX& g);

@@ -140,7 +140,9 @@ double Simulation::energyScale() const {
   return measures_.kinetic + measures_.elastic + weight + 1e-12;
 }
 
-StepStats Simulation::attempt(double h, bool reject_unconverged) {
+StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
+                              std::optional<Method> as) {
+  energy_rejected_ = false;
   x_save_ = x_;
   v_save_ = v_;
   const EnergyParts before = measures_;
@@ -159,7 +161,7 @@ StepStats Simulation::attempt(double h, bool reject_unconverged) {
   History history;
   if (has_prev_) history = History{&x_prev_, &v_prev_, h_prev_};
 
-  StepStats stats = stepper_.step(model_, h, pin_ends_, history, x_, v_);
+  StepStats stats = stepper_.step(model_, h, pin_ends_, history, x_, v_, as);
 
   // Work the pins did: reaction at the end of the step times their travel.
   // Only computed when a pin moved (static pins do no work).
@@ -173,12 +175,12 @@ StepStats Simulation::attempt(double h, bool reject_unconverged) {
       work += reaction.dot(x_.segment<3>(3 * node) - x_save_.segment<3>(3 * node));
     }
   }
-  if (stats.ok && reject_unconverged && !stats.linear_converged) {
+  if (stats.ok && reject_linear && !stats.linear_converged) {
     stats.ok = false;
     stats.failure = "linear solver did not reach tolerance (relative residual " +
                     fmt(stats.residual) + ")";
   }
-  if (stats.ok && reject_unconverged && !stats.newton_converged) {
+  if (stats.ok && reject_newton && !stats.newton_converged) {
     stats.ok = false;
     stats.failure = newtonFailure(stats);
   }
@@ -187,14 +189,16 @@ StepStats Simulation::attempt(double h, bool reject_unconverged) {
     after = measureEnergy(model_, x_, v_);
     const double gain = after.total() - before.total() - std::max(work, 0.0);
     // Backward Euler (linearized or not) must not create energy. BDF2 is only
-    // dissipative in its own two-step norm and symplectic Euler's energy
-    // oscillates by design: for those the test only catches a blow-up.
-    const bool one_step_dissipative = scene_.solver.method == Method::ImplicitEuler ||
-                                      scene_.solver.method == Method::Newton;
-    const double allowance = one_step_dissipative ? kEnergyGainTolerance : 0.5;
+    // dissipative in its own two-step norm, not step by step: the check holds
+    // it to the same bound, so a BDF2 step that would gain energy is split
+    // (its first half is a backward Euler step). Symplectic Euler's energy
+    // oscillates by design: for it the check only catches a blow-up.
+    const double allowance =
+        scene_.solver.method == Method::SymplecticEuler ? 0.5 : kEnergyGainTolerance;
     if (scene_.solver.recovery && !(gain <= allowance * scale)) {
       stats.ok = false;
       stats.failure = "energy jump of " + fmt(gain) + " J beyond the work input";
+      energy_rejected_ = true;
     }
   }
   if (!stats.ok) {
@@ -232,13 +236,55 @@ void Simulation::accumulate(const StepStats& part, StepStats* total) const {
   total->substeps += part.substeps;
   total->rejected += part.rejected;
   total->halvings = std::max(total->halvings, part.halvings);
+  total->linearized += part.linearized;
+  total->order_reduced += part.order_reduced;
   total->ok = total->ok && part.ok;
   if (!part.failure.empty()) total->failure = part.failure;
 }
 
 StepStats Simulation::stepWithRecovery(double h, int depth) {
   const bool can_split = scene_.solver.recovery && depth < scene_.solver.max_halvings;
-  StepStats first = attempt(h, can_split);
+  // At the deepest halving Newton must still converge: where it cannot (a
+  // singular start, e.g. zero-length springs, makes the implicit equation
+  // scale-free, so halving does not help) the sub-step is taken as one
+  // linearized backward-Euler step, whose linear solve is checked as usual.
+  const bool iterative = scene_.solver.method == Method::Newton ||
+                         scene_.solver.method == Method::Bdf2;
+  const bool fallback = scene_.solver.recovery && !can_split && iterative;
+  const bool reject_newton = can_split || fallback;
+  const bool bdf2_step = scene_.solver.method == Method::Bdf2 && has_prev_ && h_prev_ == h;
+  StepStats first = attempt(h, can_split, reject_newton);
+  if (!first.ok && bdf2_step && energy_rejected_) {
+    // BDF2 is not dissipative step by step: a step that would gain energy is
+    // retried as backward Euler (order 1) at the same size, which keeps the
+    // history at h, before it costs a halving.
+    const std::string bdf2_failure = first.failure;
+    const int rejected = first.rejected + 1;
+    first = attempt(h, can_split, reject_newton, Method::Newton);
+    first.rejected += rejected;
+    if (first.ok) {
+      first.order_reduced = 1;
+      if (first.failure.empty()) first.failure = "bdf2 " + bdf2_failure + ": retried as backward Euler";
+      return first;
+    }
+  }
+  if (!first.ok && fallback && !first.newton_converged && first.finite) {
+    const std::string newton_failure = first.failure;
+    const int rejected = first.rejected + 1;
+    first = attempt(h, false, false, Method::ImplicitEuler);
+    first.rejected = rejected;
+    if (first.ok) {
+      first.linearized = 1;
+      first.newton_converged = false;
+      first.failure = newton_failure + " even after " + std::to_string(depth) +
+                      " step halvings: took a linearized backward-Euler step";
+      if (!first.linear_converged) {
+        first.failure += " (its linear solve short of tolerance, relative residual " +
+                         fmt(first.residual) + ")";
+      }
+      return first;
+    }
+  }
   if (first.ok || !can_split) {
     if (!first.ok && depth > 0) {
       first.failure += " (after " + std::to_string(depth) + " step halvings)";
@@ -261,7 +307,11 @@ StepStats Simulation::stepWithRecovery(double h, int depth) {
     accumulate(part, &total);
     if (!part.ok) return total;
   }
-  if (!total.linear_converged || !total.newton_converged) {
+  if (total.linearized > 0) {
+    total.failure = std::to_string(total.linearized) +
+                    " sub-step(s) taken as linearized backward-Euler steps: newton did not "
+                    "converge even after " + std::to_string(total.halvings) + " step halvings";
+  } else if (!total.linear_converged || !total.newton_converged) {
     // A sub-step at the deepest halving was accepted short of its tolerance: say that.
     total.failure = std::string(total.newton_converged ? "linear solver did not reach tolerance"
                                                        : "newton did not converge") +

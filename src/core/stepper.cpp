@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <algorithm>
 #include <limits>
 
 #include "cloth_sim/forces.hpp"
@@ -23,6 +24,25 @@ void zeroPinned(const std::vector<char>& free, VecX& v) {
 
 }  // namespace
 
+CgResult Stepper::solveLinear(const Model& model, const VecX& b, VecX& x) {
+  const int budget = settings_.max_iterations;
+  if (settings_.preconditioner != Preconditioner::Cholesky || budget <= kStaleFactorIterations) {
+    return conjugateGradient(A_, model.springs, free_, b, x, settings_.preconditioner,
+                             settings_.tolerance, budget, cg_);
+  }
+  // A factor reused from an earlier matrix either still solves in a few
+  // iterations or is stale (Newton iterates on stiff rotating springs): then
+  // the whole budget would go on a slow solve before a refactorization.
+  // Cap the first try; the solver refactors when a reused factor stops short.
+  CgResult first = conjugateGradient(A_, model.springs, free_, b, x, settings_.preconditioner,
+                                     settings_.tolerance, kStaleFactorIterations, cg_);
+  if (first.converged) return first;
+  CgResult more = conjugateGradient(A_, model.springs, free_, b, x, settings_.preconditioner,
+                                    settings_.tolerance, budget - first.iterations, cg_);
+  more.iterations += first.iterations;
+  return more;
+}
+
 void Stepper::setPins(const Model& model, const PinnedEnds& pins) {
   free_.assign(model.numNodes(), 1);
   for (int node : pins.nodes) free_[node] = 0;
@@ -30,11 +50,11 @@ void Stepper::setPins(const Model& model, const PinnedEnds& pins) {
 }
 
 StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
-                        const History& history, VecX& x, VecX& v) {
+                        const History& history, VecX& x, VecX& v, std::optional<Method> as) {
   const auto start = Clock::now();
   setPins(model, pins);
   StepStats stats;
-  switch (settings_.method) {
+  switch (as.value_or(settings_.method)) {
     case Method::ImplicitEuler:
       stats = implicitEuler(model, h, x, v);
       break;
@@ -87,9 +107,7 @@ StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v)
 
   t0 = Clock::now();
   if (dv_.size() != 3 * n) dv_.setZero(3 * n);  // else: warm start from the last step
-  const CgResult cg = conjugateGradient(A_, model.springs, free_, rhs_, dv_,
-                                        settings_.preconditioner, settings_.tolerance,
-                                        settings_.max_iterations, cg_);
+  const CgResult cg = solveLinear(model, rhs_, dv_);
   stats.solve_s = secondsSince(t0);
   stats.cg_iterations = cg.iterations;
   stats.residual = cg.relative_residual;
@@ -172,28 +190,37 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
     t0 = Clock::now();
     rhs_ = -g_;
     delta_.setZero(v1.size());
-    const CgResult cg = conjugateGradient(A_, model.springs, free_, rhs_, delta_,
-                                          settings_.preconditioner, settings_.tolerance,
-                                          settings_.max_iterations, cg_);
+    const CgResult cg = solveLinear(model, rhs_, delta_);
     stats.solve_s += secondsSince(t0);
     stats.cg_iterations += cg.iterations;
     stats.residual = std::max(stats.residual, cg.relative_residual);
     stats.linear_converged = stats.linear_converged && cg.converged;
     ++it;
 
-    // Backtracking on ||g||: keep the best of at most 10 halvings.
+    // Backtracking: accept the first step that lowers ||g|| or (Armijo) the
+    // incremental potential, else keep the best ||g|| of 10 halvings. Far from
+    // the solution ||g|| alone can stall: a flat stiff cloth under load grows
+    // its spring forces with the square of the sag, so only tiny steps lower
+    // ||g||, while the potential, which delta descends, lets Newton move.
     t0 = Clock::now();
+    const double slope = g_.dot(delta_);  // d(potential)/d(alpha) at 0, up to damping
+    double phi = NAN;                     // potential at alpha = 0, when first needed
     double alpha = 1.0, best_norm = INFINITY;
     for (int ls = 0; ls < 10; ++ls, alpha *= 0.5) {
       v_trial_ = v1 + alpha * delta_;
       const double trial = residual(model, bh, ax_, av_, v_trial_, x_trial_, g_trial_);
-      if (trial < best_norm) {  // keep the best trial's state, not just its alpha
+      bool accept = trial <= (1.0 - 1e-4 * alpha) * g_norm;
+      if (!accept && slope < 0.0 && std::isfinite(trial)) {
+        if (std::isnan(phi)) phi = incrementalPotential(model, bh, av_, v1, x);
+        accept = incrementalPotential(model, bh, av_, v_trial_, x_trial_) <= phi + 1e-4 * alpha * slope;
+      }
+      if (accept || trial < best_norm) {  // keep the trial's state, not just its alpha
         best_norm = trial;
         v_best_.swap(v_trial_);
         x_best_.swap(x_trial_);
         g_best_.swap(g_trial_);
       }
-      if (trial <= (1.0 - 1e-4 * alpha) * g_norm) break;
+      if (accept) break;
     }
     v1 = v_best_;
     x = x_best_;
@@ -212,6 +239,32 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
     stats.failure = "newton residual grew";
   }
   return stats;
+}
+
+double Stepper::incrementalPotential(const Model& model, double bh, const VecX& av,
+                                     const VecX& v1, const VecX& x1) const {
+  double phi = elasticEnergy(model, x1) + gravityEnergy(model, x1);
+  double dissipation = 0.5 * model.air_drag * v1.squaredNorm();
+  const bool along = model.damping_model == DampingModel::AlongSpring;
+  for (const Spring& s : model.springs) {
+    const double c = model.groups[static_cast<int>(s.type)].damping;
+    if (c == 0.0) continue;
+    const Vec3 dv = v1.segment<3>(3 * s.j) - v1.segment<3>(3 * s.i);
+    if (!along) {
+      dissipation += 0.5 * c * dv.squaredNorm();
+      continue;
+    }
+    const Vec3 d = x1.segment<3>(3 * s.j) - x1.segment<3>(3 * s.i);
+    const double l = d.norm();
+    const Vec3 u = l > kDegenerateLength * std::max(s.rest_length, 1.0) ? Vec3(d / l)
+                                                                         : s.rest_direction;
+    const double along_dv = dv.dot(u);
+    dissipation += 0.5 * c * along_dv * along_dv;
+  }
+  for (int i = 0; i < model.numNodes(); ++i) {
+    phi += 0.5 * model.mass[i] * (v1.segment<3>(3 * i) - av.segment<3>(3 * i)).squaredNorm();
+  }
+  return phi + bh * dissipation;
 }
 
 StepStats Stepper::symplecticEuler(const Model& model, double h, VecX& x, VecX& v) {
