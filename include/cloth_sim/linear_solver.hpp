@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "cloth_sim/model.hpp"
+#include "cloth_sim/multigrid.hpp"
 #include "cloth_sim/types.hpp"
 
 namespace cloth_sim {
@@ -81,6 +82,9 @@ struct CgWorkspace {
   VecX r, z, p, q;
   std::vector<Mat3> inv_diag;
   std::shared_ptr<CholeskyFactor> cholesky;  ///< made on first use
+  std::shared_ptr<MultigridPreconditioner> multigrid;  ///< made on first use
+  /// The cloth grid (node = row * cols + col); the multigrid needs it.
+  int grid_rows = 0, grid_cols = 0;
   int last_iterations = 0;
   int factorizations = 0;  ///< count, for the benchmark
 };

@@ -97,24 +97,27 @@ bool CholeskyFactor::factorize(const SystemMatrix& A, const std::vector<Spring>&
 
 namespace {
 
-void applyPreconditioner(Preconditioner kind, const std::vector<Mat3>& inv_diag,
-                         const CholeskyFactor* cholesky, const std::vector<char>& free,
+void applyPreconditioner(Preconditioner kind, CgWorkspace& ws, const std::vector<char>& free,
                          const VecX& r, VecX& z) {
   if (kind == Preconditioner::None) {
     z = r;
     return;
   }
+  if (kind == Preconditioner::Multigrid) {
+    ws.multigrid->apply(r, z);  // pinned entries come back zero
+    return;
+  }
   if (kind == Preconditioner::Cholesky) {
-    cholesky->solve(r, z);
+    ws.cholesky->solve(r, z);
     for (size_t i = 0; i < free.size(); ++i) {
       if (!free[i]) z.segment<3>(3 * i).setZero();
     }
     return;
   }
-  const int n = static_cast<int>(inv_diag.size());
+  const int n = static_cast<int>(ws.inv_diag.size());
   for (int i = 0; i < n; ++i) {
     if (free[i]) {
-      z.segment<3>(3 * i).noalias() = inv_diag[i] * r.segment<3>(3 * i);
+      z.segment<3>(3 * i).noalias() = ws.inv_diag[i] * r.segment<3>(3 * i);
     } else {
       z.segment<3>(3 * i).setZero();
     }
@@ -168,6 +171,12 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
         return result;  // not positive definite: the caller's recovery decides
       }
     }
+  } else if (preconditioner == Preconditioner::Multigrid) {
+    if (!ws.multigrid) ws.multigrid = std::make_shared<MultigridPreconditioner>();
+    if (!ws.multigrid->setup(A, springs, free, ws.grid_rows, ws.grid_cols)) {
+      result.relative_residual = 1.0;
+      return result;  // a singular block or coarse matrix: the caller's recovery decides
+    }
   }
 
   A.multiply(springs, free, x, ws.q);
@@ -186,7 +195,7 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
     r_norm = b_norm;
   }
   const double target = tolerance * b_norm;
-  applyPreconditioner(preconditioner, ws.inv_diag, ws.cholesky.get(), free, ws.r, ws.z);
+  applyPreconditioner(preconditioner, ws, free, ws.r, ws.z);
   ws.p = ws.z;
   double rz = ws.r.dot(ws.z);
   int k = 0;
@@ -200,7 +209,7 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
     r_norm = ws.r.norm();
     ++k;
     if (r_norm <= target) break;
-    applyPreconditioner(preconditioner, ws.inv_diag, ws.cholesky.get(), free, ws.r, ws.z);
+    applyPreconditioner(preconditioner, ws, free, ws.r, ws.z);
     const double rz_new = ws.r.dot(ws.z);
     ws.p = ws.z + (rz_new / rz) * ws.p;
     rz = rz_new;
