@@ -17,6 +17,15 @@
 // is a symmetric positive definite operator, as PCG needs. (Two or three
 // sweeps each way cut CG iterations by only 25-40% on the hanging cloth.)
 //
+// The matrix the V-cycle works on is A with each bend spring's coupling S
+// (ends two grid lines apart) rerouted through the node between them: 2S on
+// each half. S (x_i - x_k)^2 <= 2S (x_i - x_j)^2 + 2S (x_j - x_k)^2, so this
+// matrix is >= A (still SPD), and it exceeds A by at most the bend-to-stretch
+// stiffness ratio (cloth: 1e-4 to 1), so the preconditioner loses nothing
+// measurable; but every level then has a 9-point stencil instead of 13 points
+// on the cloth and 25 on the coarse grids, a third of the smoothing and
+// Galerkin work.
+//
 // Storage: every block of these matrices is symmetric (a spring's coupling S,
 // the node blocks, and weighted sums of them), and the matrices are symmetric:
 // each level keeps its node blocks and its strictly lower blocks, 6 numbers a
@@ -112,8 +121,10 @@ class MultigridPreconditioner {
   void vcycle(int level);
 
   std::vector<Level> levels_;
-  // Finest-level refill: the lower block of each spring (-1: a pinned end).
-  std::vector<int> spring_block_;
+  // Finest-level refill, per spring: the lower block it adds to (-1: none, a
+  // pinned end); for a rerouted spring (via_node_ >= 0) the blocks of its two
+  // halves, end i to via and via to end j.
+  std::vector<int> spring_block_, via_node_, half_block_i_, half_block_j_;
   // Coarsest direct solve: lower triangle of its matrix as a scalar sparse matrix.
   Eigen::SparseMatrix<double> coarse_matrix_;
   std::vector<int> coarse_node_index_;   ///< value index of entry r >= c of node blocks, 6 a node

@@ -1,6 +1,7 @@
 #include "cloth_sim/multigrid.hpp"
 
 #include <algorithm>
+#include <cstdlib>
 #include <stdexcept>
 #include <string>
 
@@ -90,19 +91,53 @@ void MultigridPreconditioner::buildHierarchy(const std::vector<Spring>& springs,
     finest.cols = cols;
     finest.num_nodes = rows * cols;
     finest.free = free;
-    // Lower pattern: every spring between two free nodes (pinned DOFs are eliminated).
+    // Lower pattern: every spring between two free nodes, a spring two grid
+    // lines long by its two halves (see the header) unless this level is the
+    // only one: its direct solve is then exact.
+    const bool one_level = finest.num_nodes <= kMaxCoarsestNodes ||
+                           coarseLines(rows).size() * coarseLines(cols).size() ==
+                               static_cast<size_t>(finest.num_nodes);
+    auto via = [&](const Spring& s) {
+      if (one_level) return -1;
+      const int dr = s.j / cols - s.i / cols, dc = s.j % cols - s.i % cols;
+      const bool two_lines = std::max(std::abs(dr), std::abs(dc)) == 2 &&
+                             dr % 2 == 0 && dc % 2 == 0;
+      return two_lines ? (s.i / cols + dr / 2) * cols + s.i % cols + dc / 2 : -1;
+    };
+    auto pair_of = [&](int a, int b) { return free[a] && free[b] && a != b; };
     std::vector<std::vector<int>> lower(finest.num_nodes);
+    auto add_pair = [&](int a, int b) {
+      if (pair_of(a, b)) lower[std::max(a, b)].push_back(std::min(a, b));
+    };
     for (const Spring& s : springs) {
-      if (free[s.i] && free[s.j] && s.i != s.j) lower[std::max(s.i, s.j)].push_back(std::min(s.i, s.j));
+      const int m = via(s);
+      if (m < 0) {
+        add_pair(s.i, s.j);
+      } else {
+        add_pair(s.i, m);
+        add_pair(m, s.j);
+      }
     }
     compressRows(lower, finest.lower_begin, finest.lower_column);
-    spring_block_.resize(springs.size());
-    for (size_t k = 0; k < springs.size(); ++k) {
+    auto block_of = [&](int a, int b) {
+      return pair_of(a, b) ? findColumn(finest.lower_begin, finest.lower_column, std::max(a, b),
+                                        std::min(a, b))
+                           : -1;
+    };
+    const size_t ns = springs.size();
+    spring_block_.assign(ns, -1);
+    via_node_.assign(ns, -1);
+    half_block_i_.assign(ns, -1);
+    half_block_j_.assign(ns, -1);
+    for (size_t k = 0; k < ns; ++k) {
       const Spring& s = springs[k];
-      spring_block_[k] = (free[s.i] && free[s.j] && s.i != s.j)
-                             ? findColumn(finest.lower_begin, finest.lower_column,
-                                          std::max(s.i, s.j), std::min(s.i, s.j))
-                             : -1;
+      via_node_[k] = via(s);
+      if (via_node_[k] < 0) {
+        spring_block_[k] = block_of(s.i, s.j);
+      } else {
+        half_block_i_[k] = block_of(s.i, via_node_[k]);
+        half_block_j_[k] = block_of(via_node_[k], s.j);
+      }
     }
   }
 
@@ -246,10 +281,22 @@ void MultigridPreconditioner::fillFinest(const SystemMatrix& A, const std::vecto
     level.node_block[i] = level.free[i] ? SymBlock::from(A.fullDiag(i)) : identityBlock();
   }
   std::fill(level.lower_block.begin(), level.lower_block.end(), SymBlock());
+  const std::vector<char>& free = level.free;
   for (size_t k = 0; k < springs.size(); ++k) {
-    if (spring_block_[k] >= 0) {
-      level.lower_block[spring_block_[k]].addScaled(-1.0, SymBlock::from(A.coupling(static_cast<int>(k))));
+    const SymBlock S = SymBlock::from(A.coupling(static_cast<int>(k)));
+    const int m = via_node_[k];
+    if (m < 0) {
+      if (spring_block_[k] >= 0) level.lower_block[spring_block_[k]].addScaled(-1.0, S);
+      continue;
     }
+    // Rerouted: the node blocks (A's hold S at each free end) get 2S per
+    // half at each free end of it, the couplings -2S per half.
+    const int i = springs[k].i, j = springs[k].j;
+    if (free[i]) level.node_block[i].addScaled(1.0, S);
+    if (free[j]) level.node_block[j].addScaled(1.0, S);
+    if (free[m]) level.node_block[m].addScaled(4.0, S);
+    if (half_block_i_[k] >= 0) level.lower_block[half_block_i_[k]].addScaled(-2.0, S);
+    if (half_block_j_[k] >= 0) level.lower_block[half_block_j_[k]].addScaled(-2.0, S);
   }
 }
 
