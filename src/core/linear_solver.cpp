@@ -183,8 +183,12 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
     }
   }
 
-  A.multiply(springs, free, x, ws.q);
-  ws.r = b - ws.q;
+  if (x.isZero(0.0)) {
+    ws.r = b;  // a cold start (Newton's steppers): no product needed
+  } else {
+    A.multiply(springs, free, x, ws.q);
+    ws.r = b - ws.q;
+  }
   for (int i = 0; i < n; ++i) {
     if (!free[i]) ws.r.segment<3>(3 * i).setZero();
   }
