@@ -86,7 +86,7 @@ int main(int argc, char** argv) {
       const std::string size = std::to_string(n);
       const std::vector<std::string> grid = {"cloth.rows=" + size, "cloth.cols=" + size,
                                              "pins=[0," + std::to_string(n - 1) + "]"};
-      for (const char* pre : {"block_jacobi", "cholesky"}) {
+      for (const char* pre : {"block_jacobi", "cholesky", "multigrid"}) {
         auto o = grid;
         o.push_back(std::string("solver.preconditioner=") + pre);
         o.push_back("solver.tolerance=1e-6");

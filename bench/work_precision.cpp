@@ -297,9 +297,11 @@ Scene sceneFor(const Scene& base, const Setting& s) {
     scene.solver.preconditioner = Preconditioner::BlockJacobi;
   } else if (s.preconditioner == "cholesky") {
     scene.solver.preconditioner = Preconditioner::Cholesky;
+  } else if (s.preconditioner == "multigrid") {
+    scene.solver.preconditioner = Preconditioner::Multigrid;
   } else {
     throw UsageError{"preconditioner: unknown '" + s.preconditioner +
-                     "' (expected none, block_jacobi, cholesky)"};
+                     "' (expected none, block_jacobi, cholesky, multigrid)"};
   }
   cloth_sim::validateScene(scene);  // throws SceneError naming the field
   return scene;
@@ -702,8 +704,9 @@ Preconditioner parsePreconditioner(const std::string& name) {
   if (name == "none") return Preconditioner::None;
   if (name == "block_jacobi") return Preconditioner::BlockJacobi;
   if (name == "cholesky") return Preconditioner::Cholesky;
+  if (name == "multigrid") return Preconditioner::Multigrid;
   throw UsageError{"--ref-preconditioner: unknown '" + name +
-                   "' (expected none, block_jacobi, cholesky)"};
+                   "' (expected none, block_jacobi, cholesky, multigrid)"};
 }
 
 int benchMain(const Options& o) {

@@ -7,10 +7,12 @@
 
 #include <Eigen/Sparse>
 #include <Eigen/SparseCholesky>
+#include <array>
 #include <memory>
 #include <vector>
 
 #include "cloth_sim/model.hpp"
+#include "cloth_sim/multigrid.hpp"
 #include "cloth_sim/types.hpp"
 
 namespace cloth_sim {
@@ -25,6 +27,7 @@ class SystemMatrix {
   /// Sets spring k's block S and adds it to both nodes' full diagonal blocks.
   void setCoupling(int spring, int i, int j, const Mat3& S) {
     coupling_[spring] = S;
+    ends_[spring] = {i, j};
     full_diag_[i] += S;
     full_diag_[j] += S;
   }
@@ -32,6 +35,7 @@ class SystemMatrix {
   const Mat3& coupling(int spring) const { return coupling_[spring]; }
 
   /// y = A x, restricted to free nodes (pinned rows and columns act as zero).
+  /// `springs` are the ones the couplings were set for.
   void multiply(const std::vector<Spring>& springs, const std::vector<char>& free,
                 const VecX& x, VecX& y) const;
   /// Full diagonal block of node i including its springs' couplings.
@@ -41,6 +45,9 @@ class SystemMatrix {
   std::vector<Mat3> diag_;
   std::vector<Mat3> coupling_;
   std::vector<Mat3> full_diag_;
+  /// Each spring's nodes, as setCoupling got them: the product reads these
+  /// 8 bytes, not the whole Spring.
+  std::vector<std::array<int, 2>> ends_;
 };
 
 struct CgResult {
@@ -81,6 +88,9 @@ struct CgWorkspace {
   VecX r, z, p, q;
   std::vector<Mat3> inv_diag;
   std::shared_ptr<CholeskyFactor> cholesky;  ///< made on first use
+  std::shared_ptr<MultigridPreconditioner> multigrid;  ///< made on first use
+  /// The cloth grid (node = row * cols + col); the multigrid needs it.
+  int grid_rows = 0, grid_cols = 0;
   int last_iterations = 0;
   int factorizations = 0;  ///< count, for the benchmark
 };

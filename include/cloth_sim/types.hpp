@@ -30,8 +30,10 @@ bool parseMethod(const std::string& name, Method* method);
 
 /// none: plain CG (the original project); block_jacobi: inverse 3x3 node
 /// blocks; cholesky: a sparse LDL^T factorization of the whole matrix (its
-/// pattern analysed once), so CG converges in a step or two at any stiffness.
-enum class Preconditioner { None, BlockJacobi, Cholesky };
+/// pattern analysed once), so CG converges in a step or two at any stiffness;
+/// multigrid: one symmetric geometric V-cycle on the cloth grid, so the
+/// iteration count barely grows with the resolution.
+enum class Preconditioner { None, BlockJacobi, Cholesky, Multigrid };
 
 /// Result of a runtime request: ok, or a message naming the bad field.
 struct Status {

@@ -32,10 +32,20 @@ void addExternalForces(const Model& model, const VecX& v, VecX& f) {
 void computeForces(const Model& model, const VecX& x, const VecX& v, VecX& f) {
   f.resize(x.size());
   addExternalForces(model, v, f);
+  // springForce's arithmetic, inlined: no SpringParams copy per spring (the
+  // Newton steppers call this several times a step).
+  const bool along = model.damping_model == DampingModel::AlongSpring;
   for (const Spring& s : model.springs) {
-    const Vec3 fi = springForce(x.segment<3>(3 * s.i), x.segment<3>(3 * s.j),
-                                v.segment<3>(3 * s.i), v.segment<3>(3 * s.j),
-                                springParams(model, s));
+    const SpringGroup& g = model.groups[static_cast<int>(s.type)];
+    const Vec3 d = x.segment<3>(3 * s.j) - x.segment<3>(3 * s.i);
+    const double l = d.norm();
+    const Vec3 u = l > kDegenerateLength * std::max(s.rest_length, 1.0) ? Vec3(d / l)
+                                                                        : s.rest_direction;
+    Vec3 fi = g.stiffness * (l - s.rest_length) * u;
+    if (g.damping != 0.0) {
+      const Vec3 dv = v.segment<3>(3 * s.j) - v.segment<3>(3 * s.i);
+      fi += along ? Vec3(g.damping * dv.dot(u) * u) : Vec3(g.damping * dv);
+    }
     f.segment<3>(3 * s.i) += fi;
     f.segment<3>(3 * s.j) -= fi;
   }

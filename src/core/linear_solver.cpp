@@ -1,5 +1,6 @@
 #include "cloth_sim/linear_solver.hpp"
 
+#include <cassert>
 #include <cmath>
 
 namespace cloth_sim {
@@ -8,6 +9,7 @@ void SystemMatrix::resize(int num_nodes, int num_springs) {
   diag_.resize(num_nodes);
   full_diag_.resize(num_nodes);
   coupling_.resize(num_springs);
+  ends_.resize(num_springs);
 }
 
 void SystemMatrix::reset(const std::vector<double>& mass, double extra_diagonal) {
@@ -22,8 +24,10 @@ void SystemMatrix::multiply(const std::vector<Spring>& springs, const std::vecto
   const int n = numNodes();
   y.resize(3 * n);
   for (int i = 0; i < n; ++i) y.segment<3>(3 * i).noalias() = diag_[i] * x.segment<3>(3 * i);
-  for (size_t s = 0; s < springs.size(); ++s) {
-    const int i = springs[s].i, j = springs[s].j;
+  assert(springs.size() == ends_.size());
+  (void)springs;  // the couplings' own ends are read: a Spring is 48 bytes
+  for (size_t s = 0; s < ends_.size(); ++s) {
+    const int i = ends_[s][0], j = ends_[s][1];
     const Vec3 t = coupling_[s] * (x.segment<3>(3 * i) - x.segment<3>(3 * j));
     y.segment<3>(3 * i) += t;
     y.segment<3>(3 * j) -= t;
@@ -97,24 +101,27 @@ bool CholeskyFactor::factorize(const SystemMatrix& A, const std::vector<Spring>&
 
 namespace {
 
-void applyPreconditioner(Preconditioner kind, const std::vector<Mat3>& inv_diag,
-                         const CholeskyFactor* cholesky, const std::vector<char>& free,
+void applyPreconditioner(Preconditioner kind, CgWorkspace& ws, const std::vector<char>& free,
                          const VecX& r, VecX& z) {
   if (kind == Preconditioner::None) {
     z = r;
     return;
   }
+  if (kind == Preconditioner::Multigrid) {
+    ws.multigrid->apply(r, z);  // pinned entries come back zero
+    return;
+  }
   if (kind == Preconditioner::Cholesky) {
-    cholesky->solve(r, z);
+    ws.cholesky->solve(r, z);
     for (size_t i = 0; i < free.size(); ++i) {
       if (!free[i]) z.segment<3>(3 * i).setZero();
     }
     return;
   }
-  const int n = static_cast<int>(inv_diag.size());
+  const int n = static_cast<int>(ws.inv_diag.size());
   for (int i = 0; i < n; ++i) {
     if (free[i]) {
-      z.segment<3>(3 * i).noalias() = inv_diag[i] * r.segment<3>(3 * i);
+      z.segment<3>(3 * i).noalias() = ws.inv_diag[i] * r.segment<3>(3 * i);
     } else {
       z.segment<3>(3 * i).setZero();
     }
@@ -168,10 +175,20 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
         return result;  // not positive definite: the caller's recovery decides
       }
     }
+  } else if (preconditioner == Preconditioner::Multigrid) {
+    if (!ws.multigrid) ws.multigrid = std::make_shared<MultigridPreconditioner>();
+    if (!ws.multigrid->setup(A, springs, free, ws.grid_rows, ws.grid_cols)) {
+      result.relative_residual = 1.0;
+      return result;  // a singular block or coarse matrix: the caller's recovery decides
+    }
   }
 
-  A.multiply(springs, free, x, ws.q);
-  ws.r = b - ws.q;
+  if (x.isZero(0.0)) {
+    ws.r = b;  // a cold start (Newton's steppers): no product needed
+  } else {
+    A.multiply(springs, free, x, ws.q);
+    ws.r = b - ws.q;
+  }
   for (int i = 0; i < n; ++i) {
     if (!free[i]) ws.r.segment<3>(3 * i).setZero();
   }
@@ -186,7 +203,7 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
     r_norm = b_norm;
   }
   const double target = tolerance * b_norm;
-  applyPreconditioner(preconditioner, ws.inv_diag, ws.cholesky.get(), free, ws.r, ws.z);
+  applyPreconditioner(preconditioner, ws, free, ws.r, ws.z);
   ws.p = ws.z;
   double rz = ws.r.dot(ws.z);
   int k = 0;
@@ -200,7 +217,7 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
     r_norm = ws.r.norm();
     ++k;
     if (r_norm <= target) break;
-    applyPreconditioner(preconditioner, ws.inv_diag, ws.cholesky.get(), free, ws.r, ws.z);
+    applyPreconditioner(preconditioner, ws, free, ws.r, ws.z);
     const double rz_new = ws.r.dot(ws.z);
     ws.p = ws.z + (rz_new / rz) * ws.p;
     rz = rz_new;

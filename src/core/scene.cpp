@@ -315,9 +315,11 @@ void readSolver(const YAML::Node& node, Scene::Solver* solver) {
       solver->preconditioner = Preconditioner::BlockJacobi;
     } else if (name == "cholesky") {
       solver->preconditioner = Preconditioner::Cholesky;
+    } else if (name == "multigrid") {
+      solver->preconditioner = Preconditioner::Multigrid;
     } else {
-      fail(f.path("preconditioner"),
-           "unknown preconditioner '" + name + "' (expected none, block_jacobi, cholesky)");
+      fail(f.path("preconditioner"), "unknown preconditioner '" + name +
+                                         "' (expected none, block_jacobi, cholesky, multigrid)");
     }
   }
   if (f.has("project_compression")) {

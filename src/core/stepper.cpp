@@ -47,6 +47,8 @@ void Stepper::setPins(const Model& model, const PinnedEnds& pins) {
   free_.assign(model.numNodes(), 1);
   for (int node : pins.nodes) free_[node] = 0;
   pins_ = &pins;
+  cg_.grid_rows = model.rows;
+  cg_.grid_cols = model.cols;
 }
 
 StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,

@@ -1,0 +1,140 @@
+// Geometric multigrid preconditioner for the implicit step's CG: one
+// symmetric V-cycle on the cloth's rows x cols grid, so the CG iteration count
+// stays nearly flat as the grid is refined (block Jacobi doubles it with each
+// doubling of the resolution).
+//
+// Levels: the grid is coarsened by 2 per direction (any size: a coarse line
+// sits on every other fine line and on the last one) until at most
+// kMaxCoarsestNodes nodes remain. P is bilinear interpolation (x I3); pinned
+// fine nodes have zero rows (their velocity change is prescribed) and a coarse
+// node on a pinned fine node is fixed too (zero column), so P has full column
+// rank and every coarse operator A_c = P^T A P is SPD. The Galerkin products
+// have a fixed pattern, built once; each solve only refills the values. The
+// coarsest level is solved by a sparse LDL^T whose pattern is analysed once.
+//
+// Smoothing: one forward block Gauss-Seidel sweep before the coarse
+// correction and one backward sweep (its transpose) after it, so the V-cycle
+// is a symmetric positive definite operator, as PCG needs. (Two or three
+// sweeps each way cut CG iterations by only 25-40% on the hanging cloth.)
+//
+// The matrix the V-cycle works on is A with each bend spring's coupling S
+// (ends two grid lines apart) rerouted through the node between them: 2S on
+// each half. S (x_i - x_k)^2 <= 2S (x_i - x_j)^2 + 2S (x_j - x_k)^2, so this
+// matrix is >= A (still SPD), and it exceeds A by at most the bend-to-stretch
+// stiffness ratio (cloth: 1e-4 to 1), so the preconditioner loses nothing
+// measurable; but every level then has a 9-point stencil instead of 13 points
+// on the cloth and 25 on the coarse grids, a third of the smoothing and
+// Galerkin work.
+//
+// Storage: every block of these matrices is symmetric (a spring's coupling S,
+// the node blocks, and weighted sums of them), and the matrices are symmetric:
+// each level keeps its node blocks and its strictly lower blocks, 6 numbers a
+// block. The smoother streams that once per sweep (memory, not arithmetic,
+// bounds it).
+#pragma once
+
+#include <Eigen/Sparse>
+#include <Eigen/SparseCholesky>
+#include <vector>
+
+#include "cloth_sim/model.hpp"
+#include "cloth_sim/types.hpp"
+
+namespace cloth_sim {
+
+class SystemMatrix;
+
+/// A symmetric 3x3 block: xx, yy, zz, xy, xz, yz.
+struct SymBlock {
+  double v[6] = {0, 0, 0, 0, 0, 0};
+
+  static SymBlock from(const Mat3& m) {
+    return {{m(0, 0), m(1, 1), m(2, 2), m(0, 1), m(0, 2), m(1, 2)}};
+  }
+  Mat3 toMat3() const {
+    Mat3 m;
+    m << v[0], v[3], v[4], v[3], v[1], v[5], v[4], v[5], v[2];
+    return m;
+  }
+  Vec3 operator*(const Vec3& x) const {
+    return {v[0] * x[0] + v[3] * x[1] + v[4] * x[2], v[3] * x[0] + v[1] * x[1] + v[5] * x[2],
+            v[4] * x[0] + v[5] * x[1] + v[2] * x[2]};
+  }
+  void addScaled(double s, const SymBlock& b) {
+    for (int k = 0; k < 6; ++k) v[k] += s * b.v[k];
+  }
+};
+
+class MultigridPreconditioner {
+ public:
+  /// Coarsening stops at this many nodes (or when the grid can shrink no more).
+  static constexpr int kMaxCoarsestNodes = 100;
+
+  /// Builds the hierarchy's patterns if the grid, the springs or the pins
+  /// changed since the last call, then refills every level from A. Returns
+  /// false (the preconditioner is then unusable) if a node block or the
+  /// coarsest matrix cannot be factored. Throws std::invalid_argument if
+  /// rows * cols is not A's node count.
+  bool setup(const SystemMatrix& A, const std::vector<Spring>& springs,
+             const std::vector<char>& free, int rows, int cols);
+
+  /// z = B r, B the V-cycle (SPD on the free DOFs); pinned entries of z are
+  /// zero and pinned entries of r are ignored.
+  void apply(const VecX& r, VecX& z);
+
+  int numLevels() const { return static_cast<int>(levels_.size()); }
+  /// Grid size of a level (0 = the cloth).
+  int levelRows(int level) const { return levels_[level].rows; }
+  int levelCols(int level) const { return levels_[level].cols; }
+
+ private:
+  struct Level {
+    int rows = 0, cols = 0;
+    int num_nodes = 0;
+    std::vector<char> free;
+    // The matrix: node blocks, then the strictly lower blocks of row i at
+    // [lower_begin[i], lower_begin[i + 1]) with columns lower_column.
+    std::vector<SymBlock> node_block;
+    std::vector<int> lower_begin, lower_column;
+    std::vector<SymBlock> lower_block;
+    std::vector<SymBlock> inv_node_block;  ///< zero for fixed nodes, so they stay zero
+    // Interpolation from the next coarser level, one row per node of this
+    // level: coarse nodes interp_node[k] with weights interp_weight[k] for k
+    // in [interp_begin[i], interp_begin[i + 1]).
+    std::vector<int> interp_begin, interp_node;
+    std::vector<double> interp_weight;
+    // Galerkin refill of the next coarser matrix, in the order galerkin()
+    // walks this level's blocks and interpolation pairs: the coarse block each
+    // product adds to (index < coarse num_nodes: a node block; else lower
+    // block index + num_nodes; -1: counted by its mirror pair).
+    std::vector<int> galerkin_target;
+    VecX x, b, r;  ///< V-cycle buffers
+  };
+
+  void buildHierarchy(const std::vector<Spring>& springs, const std::vector<char>& free,
+                      int rows, int cols);
+  void buildCoarseSolver();
+  void fillFinest(const SystemMatrix& A, const std::vector<Spring>& springs);
+  void galerkin(const Level& fine, Level& coarse) const;
+  bool prepareSmoother(Level& level) const;
+  bool factorCoarsest();
+  void vcycle(int level);
+
+  std::vector<Level> levels_;
+  // Finest-level refill, per spring: the lower block it adds to (-1: none, a
+  // pinned end); for a rerouted spring (via_node_ >= 0) the blocks of its two
+  // halves, end i to via and via to end j.
+  std::vector<int> spring_block_, via_node_, half_block_i_, half_block_j_;
+  // Coarsest direct solve: lower triangle of its matrix as a scalar sparse matrix.
+  Eigen::SparseMatrix<double> coarse_matrix_;
+  std::vector<int> coarse_node_index_;   ///< value index of entry r >= c of node blocks, 6 a node
+  std::vector<int> coarse_lower_index_;  ///< value index of all 9 entries of each lower block
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower> coarse_ldlt_;
+  // What the patterns were built for.
+  int rows_ = -1, cols_ = -1;
+  std::vector<int> spring_ends_;
+  std::vector<char> free_key_;
+  bool ready_ = false;
+};
+
+}  // namespace cloth_sim

@@ -1,0 +1,476 @@
+#include "cloth_sim/multigrid.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <stdexcept>
+#include <string>
+
+#include "cloth_sim/linear_solver.hpp"
+
+namespace cloth_sim {
+
+namespace {
+
+/// Fine lines that carry a coarse line: every other one and the last one
+/// (for an even count it replaces the second last), so ceil(m / 2) lines for
+/// m >= 3. Two or fewer lines are kept as they are.
+std::vector<int> coarseLines(int m) {
+  std::vector<int> lines;
+  if (m <= 2) {
+    for (int i = 0; i < m; ++i) lines.push_back(i);
+    return lines;
+  }
+  for (int p = 0; p < m - 1; p += 2) lines.push_back(p);
+  if (m % 2 == 0) {
+    lines.back() = m - 1;
+  } else {
+    lines.push_back(m - 1);
+  }
+  return lines;
+}
+
+/// Linear interpolation of one fine line from at most two coarse lines.
+struct LineWeights {
+  int coarse[2] = {0, 0};
+  double weight[2] = {0.0, 0.0};
+  int count = 0;
+};
+
+std::vector<LineWeights> lineInterpolation(int m, const std::vector<int>& lines) {
+  std::vector<LineWeights> w(m);
+  size_t k = 0;
+  for (int f = 0; f < m; ++f) {
+    while (k + 1 < lines.size() && lines[k + 1] <= f) ++k;
+    if (lines[k] == f) {
+      w[f].coarse[0] = static_cast<int>(k);
+      w[f].weight[0] = 1.0;
+      w[f].count = 1;
+    } else {
+      const double t = static_cast<double>(f - lines[k]) / (lines[k + 1] - lines[k]);
+      w[f].coarse[0] = static_cast<int>(k);
+      w[f].coarse[1] = static_cast<int>(k + 1);
+      w[f].weight[0] = 1.0 - t;
+      w[f].weight[1] = t;
+      w[f].count = 2;
+    }
+  }
+  return w;
+}
+
+SymBlock identityBlock() { return {{1, 1, 1, 0, 0, 0}}; }
+
+/// Sorts and deduplicates each row's columns into compressed rows.
+void compressRows(std::vector<std::vector<int>>& rows, std::vector<int>& begin,
+                  std::vector<int>& column) {
+  begin.assign(rows.size() + 1, 0);
+  column.clear();
+  for (size_t i = 0; i < rows.size(); ++i) {
+    std::sort(rows[i].begin(), rows[i].end());
+    rows[i].erase(std::unique(rows[i].begin(), rows[i].end()), rows[i].end());
+    column.insert(column.end(), rows[i].begin(), rows[i].end());
+    begin[i + 1] = static_cast<int>(column.size());
+  }
+}
+
+int findColumn(const std::vector<int>& begin, const std::vector<int>& column, int i, int j) {
+  const auto first = column.begin() + begin[i], last = column.begin() + begin[i + 1];
+  const auto it = std::lower_bound(first, last, j);
+  return (it != last && *it == j) ? static_cast<int>(it - column.begin()) : -1;
+}
+
+}  // namespace
+
+void MultigridPreconditioner::buildHierarchy(const std::vector<Spring>& springs,
+                                             const std::vector<char>& free, int rows,
+                                             int cols) {
+  levels_.clear();
+  levels_.emplace_back();
+  {
+    Level& finest = levels_.back();
+    finest.rows = rows;
+    finest.cols = cols;
+    finest.num_nodes = rows * cols;
+    finest.free = free;
+    // Lower pattern: every spring between two free nodes, a spring two grid
+    // lines long by its two halves (see the header) unless this level is the
+    // only one: its direct solve is then exact.
+    const bool one_level = finest.num_nodes <= kMaxCoarsestNodes ||
+                           coarseLines(rows).size() * coarseLines(cols).size() ==
+                               static_cast<size_t>(finest.num_nodes);
+    auto via = [&](const Spring& s) {
+      if (one_level) return -1;
+      const int dr = s.j / cols - s.i / cols, dc = s.j % cols - s.i % cols;
+      const bool two_lines = std::max(std::abs(dr), std::abs(dc)) == 2 &&
+                             dr % 2 == 0 && dc % 2 == 0;
+      return two_lines ? (s.i / cols + dr / 2) * cols + s.i % cols + dc / 2 : -1;
+    };
+    auto pair_of = [&](int a, int b) { return free[a] && free[b] && a != b; };
+    std::vector<std::vector<int>> lower(finest.num_nodes);
+    auto add_pair = [&](int a, int b) {
+      if (pair_of(a, b)) lower[std::max(a, b)].push_back(std::min(a, b));
+    };
+    for (const Spring& s : springs) {
+      const int m = via(s);
+      if (m < 0) {
+        add_pair(s.i, s.j);
+      } else {
+        add_pair(s.i, m);
+        add_pair(m, s.j);
+      }
+    }
+    compressRows(lower, finest.lower_begin, finest.lower_column);
+    auto block_of = [&](int a, int b) {
+      return pair_of(a, b) ? findColumn(finest.lower_begin, finest.lower_column, std::max(a, b),
+                                        std::min(a, b))
+                           : -1;
+    };
+    const size_t ns = springs.size();
+    spring_block_.assign(ns, -1);
+    via_node_.assign(ns, -1);
+    half_block_i_.assign(ns, -1);
+    half_block_j_.assign(ns, -1);
+    for (size_t k = 0; k < ns; ++k) {
+      const Spring& s = springs[k];
+      via_node_[k] = via(s);
+      if (via_node_[k] < 0) {
+        spring_block_[k] = block_of(s.i, s.j);
+      } else {
+        half_block_i_[k] = block_of(s.i, via_node_[k]);
+        half_block_j_[k] = block_of(via_node_[k], s.j);
+      }
+    }
+  }
+
+  // Coarser levels until small enough or the grid stops shrinking.
+  while (levels_.back().num_nodes > kMaxCoarsestNodes) {
+    Level& fine = levels_.back();
+    const std::vector<int> row_lines = coarseLines(fine.rows), col_lines = coarseLines(fine.cols);
+    Level coarse;
+    coarse.rows = static_cast<int>(row_lines.size());
+    coarse.cols = static_cast<int>(col_lines.size());
+    coarse.num_nodes = coarse.rows * coarse.cols;
+    if (coarse.num_nodes == fine.num_nodes) break;
+    const int nc = coarse.num_nodes;
+    // A coarse node on a pinned fine node is fixed: its correction is zero.
+    coarse.free.resize(nc);
+    for (int R = 0; R < coarse.rows; ++R) {
+      for (int C = 0; C < coarse.cols; ++C) {
+        coarse.free[R * coarse.cols + C] = fine.free[row_lines[R] * fine.cols + col_lines[C]];
+      }
+    }
+    const auto wr = lineInterpolation(fine.rows, row_lines);
+    const auto wc = lineInterpolation(fine.cols, col_lines);
+    fine.interp_begin.assign(fine.num_nodes + 1, 0);
+    fine.interp_node.clear();
+    fine.interp_weight.clear();
+    for (int r = 0; r < fine.rows; ++r) {
+      for (int c = 0; c < fine.cols; ++c) {
+        const int i = r * fine.cols + c;
+        if (fine.free[i]) {
+          for (int a = 0; a < wr[r].count; ++a) {
+            for (int b = 0; b < wc[c].count; ++b) {
+              const int I = wr[r].coarse[a] * coarse.cols + wc[c].coarse[b];
+              if (!coarse.free[I]) continue;
+              fine.interp_node.push_back(I);
+              fine.interp_weight.push_back(wr[r].weight[a] * wc[c].weight[b]);
+            }
+          }
+        }
+        fine.interp_begin[i + 1] = static_cast<int>(fine.interp_node.size());
+      }
+    }
+    // Galerkin pattern, walked in the order galerkin() refills it: per fine
+    // row, its node block, then its lower blocks; each with every pair of
+    // interpolation entries of the block's row and column node.
+    auto walk = [&](auto&& visit) {
+      for (int i = 0; i < fine.num_nodes; ++i) {
+        const int a0 = fine.interp_begin[i], a1 = fine.interp_begin[i + 1];
+        for (int a = a0; a < a1; ++a) {
+          for (int b = a0; b < a1; ++b) {
+            // A node block D adds w_a w_b D to (I_a, I_b) and to its mirror: one of them.
+            const int I = fine.interp_node[a], J = fine.interp_node[b];
+            visit(I >= J ? I : -1, J);
+          }
+        }
+        for (int s = fine.lower_begin[i]; s < fine.lower_begin[i + 1]; ++s) {
+          const int j = fine.lower_column[s];
+          for (int a = a0; a < a1; ++a) {
+            for (int b = fine.interp_begin[j]; b < fine.interp_begin[j + 1]; ++b) {
+              const int I = fine.interp_node[a], J = fine.interp_node[b];
+              visit(std::max(I, J), std::min(I, J));
+            }
+          }
+        }
+      }
+    };
+    std::vector<std::vector<int>> lower(nc);
+    walk([&](int I, int J) {
+      if (I > J) lower[I].push_back(J);
+    });
+    compressRows(lower, coarse.lower_begin, coarse.lower_column);
+    fine.galerkin_target.clear();
+    walk([&](int I, int J) {
+      if (I < 0) {
+        fine.galerkin_target.push_back(-1);
+      } else if (I == J) {
+        fine.galerkin_target.push_back(I);
+      } else {
+        fine.galerkin_target.push_back(
+            nc + findColumn(coarse.lower_begin, coarse.lower_column, I, J));
+      }
+    });
+    levels_.push_back(std::move(coarse));
+  }
+  for (Level& level : levels_) {
+    level.node_block.resize(level.num_nodes);
+    level.inv_node_block.resize(level.num_nodes);
+    level.lower_block.resize(level.lower_column.size());
+    level.x.setZero(3 * level.num_nodes);
+    level.b.setZero(3 * level.num_nodes);
+    level.r.setZero(3 * level.num_nodes);
+  }
+  buildCoarseSolver();
+  rows_ = rows;
+  cols_ = cols;
+  free_key_ = free;
+}
+
+void MultigridPreconditioner::buildCoarseSolver() {
+  // The coarsest matrix's lower triangle as a scalar matrix, pattern analysed once.
+  const Level& level = levels_.back();
+  std::vector<Eigen::Triplet<double>> entries;
+  for (int i = 0; i < level.num_nodes; ++i) {
+    for (int c = 0; c < 3; ++c) {
+      for (int r = c; r < 3; ++r) entries.emplace_back(3 * i + r, 3 * i + c, 1.0);
+    }
+    for (int s = level.lower_begin[i]; s < level.lower_begin[i + 1]; ++s) {
+      const int j = level.lower_column[s];
+      for (int c = 0; c < 3; ++c) {
+        for (int r = 0; r < 3; ++r) entries.emplace_back(3 * i + r, 3 * j + c, 1.0);
+      }
+    }
+  }
+  const int dim = 3 * level.num_nodes;
+  coarse_matrix_.resize(dim, dim);
+  coarse_matrix_.setFromTriplets(entries.begin(), entries.end());
+  coarse_matrix_.makeCompressed();
+  auto index_of = [&](int row, int col) {
+    return static_cast<int>(&coarse_matrix_.coeffRef(row, col) - coarse_matrix_.valuePtr());
+  };
+  // SymBlock order: xx, yy, zz, xy, xz, yz; lower triangle (r >= c) entries.
+  static constexpr int kRow[6] = {0, 1, 2, 1, 2, 2}, kCol[6] = {0, 1, 2, 0, 0, 1};
+  coarse_node_index_.resize(6 * level.num_nodes);
+  for (int i = 0; i < level.num_nodes; ++i) {
+    for (int e = 0; e < 6; ++e) coarse_node_index_[6 * i + e] = index_of(3 * i + kRow[e], 3 * i + kCol[e]);
+  }
+  coarse_lower_index_.resize(9 * level.lower_column.size());
+  for (int i = 0; i < level.num_nodes; ++i) {
+    for (int s = level.lower_begin[i]; s < level.lower_begin[i + 1]; ++s) {
+      const int j = level.lower_column[s];
+      for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 3; ++c) coarse_lower_index_[9 * s + 3 * r + c] = index_of(3 * i + r, 3 * j + c);
+      }
+    }
+  }
+  coarse_ldlt_.analyzePattern(coarse_matrix_);
+}
+
+void MultigridPreconditioner::fillFinest(const SystemMatrix& A, const std::vector<Spring>& springs) {
+  Level& level = levels_.front();
+  for (int i = 0; i < level.num_nodes; ++i) {
+    level.node_block[i] = level.free[i] ? SymBlock::from(A.fullDiag(i)) : identityBlock();
+  }
+  std::fill(level.lower_block.begin(), level.lower_block.end(), SymBlock());
+  const std::vector<char>& free = level.free;
+  for (size_t k = 0; k < springs.size(); ++k) {
+    const SymBlock S = SymBlock::from(A.coupling(static_cast<int>(k)));
+    const int m = via_node_[k];
+    if (m < 0) {
+      if (spring_block_[k] >= 0) level.lower_block[spring_block_[k]].addScaled(-1.0, S);
+      continue;
+    }
+    // Rerouted: the node blocks (A's hold S at each free end) get 2S per
+    // half at each free end of it, the couplings -2S per half.
+    const int i = springs[k].i, j = springs[k].j;
+    if (free[i]) level.node_block[i].addScaled(1.0, S);
+    if (free[j]) level.node_block[j].addScaled(1.0, S);
+    if (free[m]) level.node_block[m].addScaled(4.0, S);
+    if (half_block_i_[k] >= 0) level.lower_block[half_block_i_[k]].addScaled(-2.0, S);
+    if (half_block_j_[k] >= 0) level.lower_block[half_block_j_[k]].addScaled(-2.0, S);
+  }
+}
+
+void MultigridPreconditioner::galerkin(const Level& fine, Level& coarse) const {
+  const int nc = coarse.num_nodes;
+  std::fill(coarse.node_block.begin(), coarse.node_block.end(), SymBlock());
+  std::fill(coarse.lower_block.begin(), coarse.lower_block.end(), SymBlock());
+  auto add = [&](int target, double weight, const SymBlock& block) {
+    if (target < 0) return;
+    if (target < nc) {
+      coarse.node_block[target].addScaled(weight, block);
+    } else {
+      coarse.lower_block[target - nc].addScaled(weight, block);
+    }
+  };
+  const int* target = fine.galerkin_target.data();
+  for (int i = 0; i < fine.num_nodes; ++i) {
+    const int a0 = fine.interp_begin[i], a1 = fine.interp_begin[i + 1];
+    if (a0 == a1) continue;  // a pinned node: no targets either
+    const SymBlock& D = fine.node_block[i];
+    for (int a = a0; a < a1; ++a) {
+      for (int b = a0; b < a1; ++b) {
+        add(*target++, fine.interp_weight[a] * fine.interp_weight[b], D);
+      }
+    }
+    for (int s = fine.lower_begin[i]; s < fine.lower_begin[i + 1]; ++s) {
+      const int j = fine.lower_column[s];
+      const SymBlock& L = fine.lower_block[s];
+      for (int a = a0; a < a1; ++a) {
+        for (int b = fine.interp_begin[j]; b < fine.interp_begin[j + 1]; ++b) {
+          // L_ij and its mirror L_ji both land on a coarse node block when I == J.
+          const int t = *target++;
+          add(t, (t < nc ? 2.0 : 1.0) * fine.interp_weight[a] * fine.interp_weight[b], L);
+        }
+      }
+    }
+  }
+  for (int I = 0; I < nc; ++I) {
+    if (!coarse.free[I]) coarse.node_block[I] = identityBlock();
+  }
+}
+
+bool MultigridPreconditioner::prepareSmoother(Level& level) const {
+  for (int i = 0; i < level.num_nodes; ++i) {
+    if (!level.free[i]) {
+      level.inv_node_block[i] = SymBlock();  // keeps a fixed node's x at zero
+      continue;
+    }
+    // The symmetric block's inverse by cofactors (symmetric too).
+    const double* m = level.node_block[i].v;  // xx yy zz xy xz yz
+    const double c_xx = m[1] * m[2] - m[5] * m[5], c_yy = m[0] * m[2] - m[4] * m[4],
+                 c_zz = m[0] * m[1] - m[3] * m[3], c_xy = m[4] * m[5] - m[3] * m[2],
+                 c_xz = m[3] * m[5] - m[4] * m[1], c_yz = m[3] * m[4] - m[0] * m[5];
+    const double det = m[0] * c_xx + m[3] * c_xy + m[4] * c_xz;
+    const double s = 1.0 / det;
+    level.inv_node_block[i] = {{s * c_xx, s * c_yy, s * c_zz, s * c_xy, s * c_xz, s * c_yz}};
+    if (!std::isfinite(s) || !std::isfinite(s * c_xx)) return false;
+  }
+  return true;
+}
+
+bool MultigridPreconditioner::factorCoarsest() {
+  const Level& level = levels_.back();
+  double* values = coarse_matrix_.valuePtr();
+  for (int i = 0; i < level.num_nodes; ++i) {
+    for (int e = 0; e < 6; ++e) values[coarse_node_index_[6 * i + e]] = level.node_block[i].v[e];
+  }
+  for (size_t s = 0; s < level.lower_block.size(); ++s) {
+    const Mat3 L = level.lower_block[s].toMat3();
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) values[coarse_lower_index_[9 * s + 3 * r + c]] = L(r, c);
+    }
+  }
+  coarse_ldlt_.factorize(coarse_matrix_);
+  return coarse_ldlt_.info() == Eigen::Success;
+}
+
+bool MultigridPreconditioner::setup(const SystemMatrix& A, const std::vector<Spring>& springs,
+                                    const std::vector<char>& free, int rows, int cols) {
+  if (rows < 1 || cols < 1 || rows * cols != A.numNodes()) {
+    throw std::invalid_argument("multigrid preconditioner: grid " + std::to_string(rows) + " x " +
+                                std::to_string(cols) + " does not match the " +
+                                std::to_string(A.numNodes()) + " nodes of the system");
+  }
+  bool same_springs = 2 * springs.size() == spring_ends_.size();
+  for (size_t k = 0; same_springs && k < springs.size(); ++k) {
+    same_springs = springs[k].i == spring_ends_[2 * k] && springs[k].j == spring_ends_[2 * k + 1];
+  }
+  if (rows != rows_ || cols != cols_ || !same_springs || free != free_key_) {
+    ready_ = false;
+    buildHierarchy(springs, free, rows, cols);
+    spring_ends_.resize(2 * springs.size());
+    for (size_t k = 0; k < springs.size(); ++k) {
+      spring_ends_[2 * k] = springs[k].i;
+      spring_ends_[2 * k + 1] = springs[k].j;
+    }
+  }
+  ready_ = false;
+  fillFinest(A, springs);
+  for (size_t l = 0; l + 1 < levels_.size(); ++l) {
+    if (!prepareSmoother(levels_[l])) return false;
+    galerkin(levels_[l], levels_[l + 1]);
+  }
+  if (!factorCoarsest()) return false;
+  ready_ = true;
+  return true;
+}
+
+void MultigridPreconditioner::vcycle(int l) {
+  Level& level = levels_[l];
+  const int n = level.num_nodes;
+  if (l + 1 == numLevels()) {
+    level.x = coarse_ldlt_.solve(level.b);
+    for (int i = 0; i < n; ++i) {
+      if (!level.free[i]) level.x.segment<3>(3 * i).setZero();
+    }
+    return;
+  }
+  const SymBlock* L = level.lower_block.data();
+  const int* column = level.lower_column.data();
+  const int* begin = level.lower_begin.data();
+  VecX& x = level.x;
+  VecX& r = level.r;
+
+  // Forward Gauss-Seidel from x = 0. Row i's equation then holds exactly with
+  // the new x_j (j < i) and x_j = 0 (j > i), so the residual is
+  // r_i = -sum_{j > i} A_ij x_j: gathered from later rows as they are solved.
+  r.setZero();
+  for (int i = 0; i < n; ++i) {
+    Vec3 s = level.b.segment<3>(3 * i);
+    for (int k = begin[i]; k < begin[i + 1]; ++k) s -= L[k] * x.segment<3>(3 * column[k]);
+    const Vec3 xi = level.inv_node_block[i] * s;
+    x.segment<3>(3 * i) = xi;
+    for (int k = begin[i]; k < begin[i + 1]; ++k) r.segment<3>(3 * column[k]) -= L[k] * xi;
+  }
+
+  // Coarse correction: x += P A_c^-1 P^T r (A_c^-1 by the next V-cycle).
+  Level& coarse = levels_[l + 1];
+  coarse.b.setZero();
+  for (int i = 0; i < n; ++i) {
+    for (int a = level.interp_begin[i]; a < level.interp_begin[i + 1]; ++a) {
+      coarse.b.segment<3>(3 * level.interp_node[a]) += level.interp_weight[a] * r.segment<3>(3 * i);
+    }
+  }
+  vcycle(l + 1);
+  for (int i = 0; i < n; ++i) {
+    for (int a = level.interp_begin[i]; a < level.interp_begin[i + 1]; ++a) {
+      x.segment<3>(3 * i) += level.interp_weight[a] * coarse.x.segment<3>(3 * level.interp_node[a]);
+    }
+  }
+
+  // Backward Gauss-Seidel (the forward sweep's transpose): rows j > i are
+  // already new; their part -sum_{j > i} A_ij x_j is scattered into r as
+  // each row is solved, the old x_j (j < i) are gathered.
+  r.setZero();
+  for (int i = n - 1; i >= 0; --i) {
+    Vec3 s = level.b.segment<3>(3 * i) + r.segment<3>(3 * i);
+    for (int k = begin[i]; k < begin[i + 1]; ++k) s -= L[k] * x.segment<3>(3 * column[k]);
+    const Vec3 xi = level.inv_node_block[i] * s;
+    x.segment<3>(3 * i) = xi;
+    for (int k = begin[i]; k < begin[i + 1]; ++k) r.segment<3>(3 * column[k]) -= L[k] * xi;
+  }
+}
+
+void MultigridPreconditioner::apply(const VecX& r, VecX& z) {
+  if (!ready_) throw std::logic_error("multigrid preconditioner applied before a successful setup");
+  Level& finest = levels_.front();
+  finest.b = r;
+  for (int i = 0; i < finest.num_nodes; ++i) {
+    if (!finest.free[i]) finest.b.segment<3>(3 * i).setZero();
+  }
+  vcycle(0);
+  z = finest.x;
+}
+
+}  // namespace cloth_sim
