@@ -1,6 +1,9 @@
 // Small scenes built in code for the core tests.
 #pragma once
 
+#include <random>
+
+#include "cloth_sim/model.hpp"
 #include "cloth_sim/scene.hpp"
 
 namespace cloth_sim::test {
@@ -36,6 +39,23 @@ inline Scene hangingCloth(int n, Method method = Method::ImplicitEuler) {
   s.solver.dt = 0.01;
   s.solver.tolerance = 1e-10;
   return s;
+}
+
+/// A random state near rest: every coordinate of x moved, and of v (and w, if
+/// given) drawn, uniformly within 0.1 from `seed`; node 7 is then put on node 8,
+/// so one spring has zero length (it must use its rest direction).
+inline void perturbedState(const Model& m, unsigned seed, VecX* x, VecX* v, VecX* w = nullptr) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-0.1, 0.1);
+  *x = m.rest_positions;
+  v->resize(x->size());
+  if (w) w->resize(x->size());
+  for (int k = 0; k < x->size(); ++k) {
+    (*x)[k] += u(rng);
+    (*v)[k] = u(rng);
+    if (w) (*w)[k] = u(rng);
+  }
+  x->segment<3>(3 * 7) = x->segment<3>(3 * 8);
 }
 
 }  // namespace cloth_sim::test

@@ -3,8 +3,6 @@
 // air drag and a zero-length spring.
 #include <gtest/gtest.h>
 
-#include <random>
-
 #include "cloth_sim/forces.hpp"
 #include "scene_builders.hpp"
 
@@ -17,14 +15,8 @@ TEST(Forces, MatchPerSpringReferenceSum) {
     s.damping_model = dm;
     s.air_drag = 0.3;
     const Model m = buildModel(s);
-    std::mt19937 rng(11);
-    std::uniform_real_distribution<double> u(-0.1, 0.1);
-    VecX x = m.rest_positions, v(x.size());
-    for (int k = 0; k < x.size(); ++k) {
-      x[k] += u(rng);
-      v[k] = u(rng);
-    }
-    x.segment<3>(3 * 7) = x.segment<3>(3 * 8);  // one zero-length spring: its rest direction
+    VecX x, v;
+    test::perturbedState(m, 11, &x, &v);  // with one zero-length spring
     VecX f;
     computeForces(m, x, v, f);
     VecX ref(x.size());

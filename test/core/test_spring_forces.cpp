@@ -128,15 +128,8 @@ TEST(Assembly, MatchesPerSpringForcesAndJacobians) {
       s.damping_model = dm;
       s.air_drag = 0.3;
       const Model m = buildModel(s);
-      std::mt19937 rng(9);
-      std::uniform_real_distribution<double> u(-0.1, 0.1);
-      VecX x = m.rest_positions, v(x.size()), w(x.size());
-      for (int k = 0; k < x.size(); ++k) {
-        x[k] += u(rng);
-        v[k] = u(rng);
-        w[k] = u(rng);
-      }
-      x.segment<3>(3 * 7) = x.segment<3>(3 * 8);  // one zero-length spring
+      VecX x, v, w;
+      test::perturbedState(m, 9, &x, &v, &w);  // with one zero-length spring
       SystemMatrix A;
       VecX f, dfdx_w, f_ref;
       const double a = 0.01, b = 1e-4;
