@@ -68,6 +68,9 @@ class CholeskyFactor {
   /// A factor of a recent matrix is still a very good preconditioner: it is
   /// reused until a solve needs more than this many CG iterations.
   static constexpr int kRefactorIterations = 10;
+  /// A reused factor that has not solved within this many iterations is
+  /// replaced by a fresh one, and CG goes on from where it stopped.
+  static constexpr int kStaleFactorIterations = 15;
   bool isValidFor(const std::vector<char>& free) const { return valid_ && free == free_; }
   void invalidate() { valid_ = false; }
 

@@ -54,11 +54,8 @@ class Stepper {
                               const VecX& x1) const;
   StepStats symplecticEuler(const Model& model, double h, VecX& x, VecX& v);
   void setPins(const Model& model, const PinnedEnds& pins);
-  /// CG on A_ x = b (x: warm start and answer) within settings_.max_iterations;
-  /// with the Cholesky preconditioner a reused factor gets kStaleFactorIterations
-  /// before it is replaced by a fresh one.
+  /// CG on A_ x = b (x: warm start and answer) with the scene's solver settings.
   CgResult solveLinear(const Model& model, const VecX& b, VecX& x);
-  static constexpr int kStaleFactorIterations = 15;
   /// g = M (v1 - av) - beta h f(ax + beta h v1, v1) on free nodes; returns ||g||.
   double residual(const Model& model, double bh, const VecX& ax, const VecX& av,
                   const VecX& v1, VecX& x1, VecX& g);

@@ -1,6 +1,7 @@
 #include "cloth_sim/linear_solver.hpp"
 
 #include <cassert>
+#include <algorithm>
 #include <cmath>
 
 namespace cloth_sim {
@@ -206,8 +207,14 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
   applyPreconditioner(preconditioner, ws, free, ws.r, ws.z);
   ws.p = ws.z;
   double rz = ws.r.dot(ws.z);
+  // A reused factor either still solves in a few iterations or is stale (e.g.
+  // Newton iterates on stiff rotating springs): then it gets only a few before
+  // a fresh one, instead of the whole budget.
+  const int budget = preconditioner == Preconditioner::Cholesky && !fresh_factor
+                         ? std::min(max_iterations, CholeskyFactor::kStaleFactorIterations)
+                         : max_iterations;
   int k = 0;
-  while (r_norm > target && k < max_iterations) {
+  while (r_norm > target && k < budget) {
     A.multiply(springs, free, ws.p, ws.q);
     const double pq = ws.p.dot(ws.q);
     if (!(pq > 0.0)) break;  // not positive definite (or NaN): stop, report
@@ -222,7 +229,8 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
     ws.p = ws.z + (rz_new / rz) * ws.p;
     rz = rz_new;
   }
-  if (preconditioner == Preconditioner::Cholesky && !fresh_factor && r_norm > target) {
+  if (preconditioner == Preconditioner::Cholesky && !fresh_factor && r_norm > target &&
+      k < max_iterations) {
     // The reused factor was too stale for this matrix: refactor and go on from x.
     ws.cholesky->invalidate();
     CgResult more = conjugateGradient(A, springs, free, b, x, preconditioner, tolerance,

@@ -25,22 +25,8 @@ void zeroPinned(const std::vector<char>& free, VecX& v) {
 }  // namespace
 
 CgResult Stepper::solveLinear(const Model& model, const VecX& b, VecX& x) {
-  const int budget = settings_.max_iterations;
-  if (settings_.preconditioner != Preconditioner::Cholesky || budget <= kStaleFactorIterations) {
-    return conjugateGradient(A_, model.springs, free_, b, x, settings_.preconditioner,
-                             settings_.tolerance, budget, cg_);
-  }
-  // A factor reused from an earlier matrix either still solves in a few
-  // iterations or is stale (Newton iterates on stiff rotating springs): then
-  // the whole budget would go on a slow solve before a refactorization.
-  // Cap the first try; the solver refactors when a reused factor stops short.
-  CgResult first = conjugateGradient(A_, model.springs, free_, b, x, settings_.preconditioner,
-                                     settings_.tolerance, kStaleFactorIterations, cg_);
-  if (first.converged) return first;
-  CgResult more = conjugateGradient(A_, model.springs, free_, b, x, settings_.preconditioner,
-                                    settings_.tolerance, budget - first.iterations, cg_);
-  more.iterations += first.iterations;
-  return more;
+  return conjugateGradient(A_, model.springs, free_, b, x, settings_.preconditioner,
+                           settings_.tolerance, settings_.max_iterations, cg_);
 }
 
 void Stepper::setPins(const Model& model, const PinnedEnds& pins) {

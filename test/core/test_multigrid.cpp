@@ -285,5 +285,37 @@ TEST(Multigrid, SelectableInTheScene) {
   }
 }
 
+// The Cholesky preconditioner reuses its factor across solves; a factor of a
+// very different matrix must be dropped after a few iterations, not after the
+// whole budget (the user would see a stiff step take thousands of iterations).
+TEST(CholeskyReuse, StaleFactorIsReplacedAfterAFewIterations) {
+  const HangingSystem near = hangingSystem(16, 16, {0, 15}, 1.0 / 240);
+  const HangingSystem far = hangingSystem(16, 16, {0, 15}, 1.0 / 10, 1);
+  CgWorkspace ws;
+  VecX x = VecX::Zero(near.b.size());
+  ASSERT_TRUE(conjugateGradient(near.A, near.model.springs, near.free, near.b, x,
+                                Preconditioner::Cholesky, 1e-10, 1000, ws).converged);
+  ASSERT_EQ(ws.factorizations, 1);
+  // The stale factor alone does not solve within its allowance (a second
+  // workspace in the same state, given only that many iterations).
+  CgWorkspace stale;
+  VecX y = VecX::Zero(near.b.size());
+  conjugateGradient(near.A, near.model.springs, near.free, near.b, y, Preconditioner::Cholesky,
+                    1e-10, 1000, stale);
+  y.setZero();
+  const CgResult alone = conjugateGradient(far.A, far.model.springs, far.free, far.b, y,
+                                           Preconditioner::Cholesky, 1e-10,
+                                           CholeskyFactor::kStaleFactorIterations, stale);
+  ASSERT_FALSE(alone.converged) << "the two matrices are too alike to test reuse";
+  ASSERT_EQ(stale.factorizations, 1);
+  x.setZero();
+  const CgResult r = conjugateGradient(far.A, far.model.springs, far.free, far.b, x,
+                                       Preconditioner::Cholesky, 1e-10, 1000, ws);
+  EXPECT_TRUE(r.converged);
+  EXPECT_EQ(ws.factorizations, 2);
+  EXPECT_LE(r.iterations, CholeskyFactor::kStaleFactorIterations + 5);
+  EXPECT_LT(relativeResidual(far, x), 1e-9);
+}
+
 }  // namespace
 }  // namespace cloth_sim
