@@ -35,6 +35,10 @@ EnergyParts measureEnergy(const Model& model, const VecX& x, const VecX& v);
 double kineticEnergy(const Model& model, const VecX& v);
 double elasticEnergy(const Model& model, const VecX& x);
 double gravityEnergy(const Model& model, const VecX& x);  ///< -sum m g.x
+/// sqrt(sum over springs of (k L)^2): each spring force k (l - L) carries a
+/// round-off of about eps k L, so a force balance cannot be met more closely
+/// than about eps times this.
+double springForceScale(const Model& model);
 /// Largest |d|/L - 1 over all springs (0 without springs).
 double maxStrain(const Model& model, const VecX& x);
 

@@ -35,9 +35,7 @@ class SystemMatrix {
   const Mat3& coupling(int spring) const { return coupling_[spring]; }
 
   /// y = A x, restricted to free nodes (pinned rows and columns act as zero).
-  /// `springs` are the ones the couplings were set for.
-  void multiply(const std::vector<Spring>& springs, const std::vector<char>& free,
-                const VecX& x, VecX& y) const;
+  void multiply(const std::vector<char>& free, const VecX& x, VecX& y) const;
   /// Full diagonal block of node i including its springs' couplings.
   const Mat3& fullDiag(int node) const { return full_diag_[node]; }
 

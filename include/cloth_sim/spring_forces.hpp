@@ -8,6 +8,8 @@
 // D = df_i/dv_j (= -df_i/dv_i); the full 6x6 is [[-K, K], [K, -K]].
 #pragma once
 
+#include <algorithm>
+
 #include "cloth_sim/types.hpp"
 
 namespace cloth_sim {
@@ -26,6 +28,17 @@ struct SpringParams {
 /// numerically meaningless: the rest direction is used instead, so a collapsed
 /// spring pushes apart along its rest axis and nothing becomes NaN.
 constexpr double kDegenerateLength = 1e-9;
+
+/// Whether a spring of rest length L stretched to length l is degenerate (see above).
+inline bool isDegenerate(double l, double rest_length) {
+  return !(l > kDegenerateLength * std::max(rest_length, 1.0));
+}
+
+/// The spring's unit axis: d / l, or its rest direction when degenerate.
+inline Vec3 springDirection(const Vec3& d, double l, double rest_length,
+                            const Vec3& rest_direction) {
+  return isDegenerate(l, rest_length) ? rest_direction : Vec3(d / l);
+}
 
 /// Unit axis of the spring (d / |d|, or rest_direction when degenerate) and |d|.
 void springAxis(const Vec3& xi, const Vec3& xj, const SpringParams& p, Vec3* axis,

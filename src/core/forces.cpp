@@ -1,6 +1,7 @@
 #include "cloth_sim/forces.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 namespace cloth_sim {
 
@@ -39,8 +40,7 @@ void computeForces(const Model& model, const VecX& x, const VecX& v, VecX& f) {
     const SpringGroup& g = model.groups[static_cast<int>(s.type)];
     const Vec3 d = x.segment<3>(3 * s.j) - x.segment<3>(3 * s.i);
     const double l = d.norm();
-    const Vec3 u = l > kDegenerateLength * std::max(s.rest_length, 1.0) ? Vec3(d / l)
-                                                                        : s.rest_direction;
+    const Vec3 u = springDirection(d, l, s.rest_length, s.rest_direction);
     Vec3 fi = g.stiffness * (l - s.rest_length) * u;
     if (g.damping != 0.0) {
       const Vec3 dv = v.segment<3>(3 * s.j) - v.segment<3>(3 * s.i);
@@ -68,8 +68,8 @@ void assembleSystem(const Model& model, const VecX& x, const VecX& v, double a, 
     const Vec3 d = x.segment<3>(3 * s.j) - x.segment<3>(3 * s.i);
     const Vec3 dv = v.segment<3>(3 * s.j) - v.segment<3>(3 * s.i);
     const double l = d.norm();
-    const bool degenerate = !(l > kDegenerateLength * std::max(s.rest_length, 1.0));
-    const Vec3 u = degenerate ? s.rest_direction : Vec3(d / l);
+    const bool degenerate = isDegenerate(l, s.rest_length);
+    const Vec3 u = springDirection(d, l, s.rest_length, s.rest_direction);
     // K = k (1 - t) u u^T + k t I with t = 1 - L/l (clamped at 0 under
     // compression when projecting; 0 when degenerate): kept as two scalars,
     // so S = b K (+ damping) is one outer product and a diagonal shift.
@@ -141,6 +141,15 @@ double maxStrain(const Model& model, const VecX& x) {
     strain = std::max(strain, (x.segment<3>(3 * s.j) - x.segment<3>(3 * s.i)).norm() / s.rest_length - 1.0);
   }
   return strain;
+}
+
+double springForceScale(const Model& model) {
+  double sum = 0.0;
+  for (const Spring& s : model.springs) {
+    const double kl = model.groups[static_cast<int>(s.type)].stiffness * s.rest_length;
+    sum += kl * kl;
+  }
+  return std::sqrt(sum);
 }
 
 }  // namespace cloth_sim

@@ -506,13 +506,8 @@ bool Simulation::solveStatic(VecX* x_out, double rel_tol, int max_iterations) co
   const double scale = std::max(weight, freeNorm(f)) + 1e-300;
   // Spring forces k (l - L) carry a round-off of about eps k L each: a stiff
   // cloth cannot be balanced better than that, whatever rel_tol asks.
-  double spring_scale = 0.0;
-  for (const Spring& s : model_.springs) {
-    const double kl = model_.groups[static_cast<int>(s.type)].stiffness * s.rest_length;
-    spring_scale += kl * kl;
-  }
   const double target = std::max(
-      rel_tol * scale, 10.0 * std::numeric_limits<double>::epsilon() * std::sqrt(spring_scale));
+      rel_tol * scale, 10.0 * std::numeric_limits<double>::epsilon() * springForceScale(model_));
   // Accept a trial that lowers the potential energy or the force residual:
   // dx descends on the energy (the projected K is PSD), while the residual
   // alone stalls where the cloth is crumpled (non-convex springs).

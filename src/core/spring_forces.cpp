@@ -10,11 +10,7 @@ void springAxis(const Vec3& xi, const Vec3& xj, const SpringParams& p, Vec3* axi
   const Vec3 d = xj - xi;
   const double l = d.norm();
   *length = l;
-  if (l > kDegenerateLength * std::max(p.rest_length, 1.0)) {
-    *axis = d / l;
-  } else {
-    *axis = p.rest_direction;
-  }
+  *axis = springDirection(d, l, p.rest_length, p.rest_direction);
 }
 
 Vec3 springForce(const Vec3& xi, const Vec3& xj, const Vec3& vi, const Vec3& vj,
@@ -42,7 +38,7 @@ SpringJacobian springJacobian(const Vec3& xi, const Vec3& xj, const Vec3& vi,
   Vec3 u;
   double l;
   springAxis(xi, xj, p, &u, &l);
-  const bool degenerate = l <= kDegenerateLength * std::max(p.rest_length, 1.0);
+  const bool degenerate = isDegenerate(l, p.rest_length);
   const Mat3 uu = u * u.transpose();
   const Mat3 transverse = Mat3::Identity() - uu;
 

@@ -87,7 +87,7 @@ StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v)
     pins_move = pins_move || dv.squaredNorm() > 0.0;
   }
   if (pins_move) {
-    A_.multiply(model.springs, free_, pinned_dv_, g_);
+    A_.multiply(free_, pinned_dv_, g_);
     rhs_ -= g_;
   }
   zeroPinned(free_, rhs_);
@@ -153,11 +153,7 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
   // ||g|| is only known to the round-off of its terms (M v, and b h f with an
   // error of about eps k L per spring): at rest g0 itself is round-off, and a
   // target relative to it alone could never be met.
-  double spring_scale = 0.0, momentum = 0.0, weight = 0.0;
-  for (const Spring& s : model.springs) {
-    const double kl = model.groups[static_cast<int>(s.type)].stiffness * s.rest_length;
-    spring_scale += kl * kl;
-  }
+  double momentum = 0.0, weight = 0.0;
   for (int i = 0; i < model.numNodes(); ++i) {
     momentum += model.mass[i] * model.mass[i] * av_.segment<3>(3 * i).squaredNorm();
     weight += model.mass[i] * model.mass[i];
@@ -165,7 +161,7 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
   weight *= model.gravity.squaredNorm();
   const double round_off =
       100.0 * std::numeric_limits<double>::epsilon() *
-      (std::sqrt(momentum) + bh * (std::sqrt(weight) + std::sqrt(spring_scale)));
+      (std::sqrt(momentum) + bh * (std::sqrt(weight) + springForceScale(model)));
   const double target = std::max(settings_.newton_tolerance * g0, round_off);
   stats.linear_converged = true;
   int it = 0;
@@ -247,8 +243,7 @@ double Stepper::incrementalPotential(const Model& model, double bh, const VecX& 
     }
     const Vec3 d = x1.segment<3>(3 * s.j) - x1.segment<3>(3 * s.i);
     const double l = d.norm();
-    const Vec3 u = l > kDegenerateLength * std::max(s.rest_length, 1.0) ? Vec3(d / l)
-                                                                         : s.rest_direction;
+    const Vec3 u = springDirection(d, l, s.rest_length, s.rest_direction);
     const double along_dv = dv.dot(u);
     dissipation += 0.5 * c * along_dv * along_dv;
   }
