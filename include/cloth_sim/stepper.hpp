@@ -22,7 +22,7 @@ struct PinnedEnds {
 struct History {
   const VecX* x_prev = nullptr;
   const VecX* v_prev = nullptr;
-  double h_prev = 0.0;  ///< bdf2 runs only when h_prev == h; else backward Euler
+  double h_prev = 0.0;  ///< bdf2 runs only when h_prev == h; else its start step
 };
 
 class Stepper {
@@ -42,10 +42,18 @@ class Stepper {
 
  private:
   StepStats implicitEuler(const Model& model, double h, VecX& x, VecX& v);
-  /// Backward Euler (beta = 1, a = (x0, v0)) or BDF2 (beta = 2/3), solved by
-  /// Newton with a backtracking line search on ||g||.
+  /// BDF2 from the state one step back; without one (first step, or h
+  /// changed) the trapezoidal rule, so the start is second order too (a
+  /// backward-Euler start adds an O(h^2) error that dominates settling scenes).
+  StepStats bdf2(const Model& model, double h, const History& history, VecX& x, VecX& v);
+  /// Solves x1 = ax + beta h v1, M (v1 - av) = beta h f(x1, v1) by Newton with
+  /// a backtracking line search: backward Euler (beta = 1, a = (x0, v0)), BDF2
+  /// (beta = 2/3), the trapezoidal rule (beta = 1/2). `guess` (nullptr: av) is
+  /// the first iterate on free nodes: with one Newton iteration its error
+  /// scales the step's solver error.
   StepStats newtonSolve(const Model& model, double h, double beta, const VecX& ax,
-                        const VecX& av, int max_iterations, VecX& x, VecX& v);
+                        const VecX& av, int max_iterations, VecX& x, VecX& v,
+                        const VecX* guess = nullptr);
   /// Newton's merit function: 1/2 |v1 - av|_M^2 + U(x1) + b h R(v1), with U
   /// elastic + gravity potential and R the Rayleigh dissipation (drag, spring
   /// damping with the spring axis held): its gradient in v1 is g, but for the
@@ -70,6 +78,7 @@ class Stepper {
   CgWorkspace cg_;
   VecX f_, rhs_, dv_, dfdx_v_, g_, x_trial_, v_trial_, g_trial_, delta_, ax_, av_, pinned_dv_;
   VecX x_best_, v_best_, g_best_;  ///< the line search's best trial
+  VecX guess_;                      ///< bdf2's extrapolated first iterate
 };
 
 }  // namespace cloth_sim

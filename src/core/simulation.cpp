@@ -189,9 +189,10 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
     after = measureEnergy(model_, x_, v_);
     const double gain = after.total() - before.total() - std::max(work, 0.0);
     // Backward Euler (linearized or not) must not create energy. BDF2 is only
-    // dissipative in its own two-step norm, not step by step: the check holds
-    // it to the same bound, so a BDF2 step that would gain energy is split
-    // (its first half is a backward Euler step). Symplectic Euler's energy
+    // dissipative in its own two-step norm, not step by step, and its
+    // trapezoidal start not at all: the check holds both to the same bound (a
+    // bdf2 step that would gain energy is retried as backward Euler, see
+    // stepWithRecovery). Symplectic Euler's energy
     // oscillates by design: for it the check only catches a blow-up.
     const double allowance =
         scene_.solver.method == Method::SymplecticEuler ? 0.5 : kEnergyGainTolerance;
@@ -252,12 +253,12 @@ StepStats Simulation::stepWithRecovery(double h, int depth) {
                          scene_.solver.method == Method::Bdf2;
   const bool fallback = scene_.solver.recovery && !can_split && iterative;
   const bool reject_newton = can_split || fallback;
-  const bool bdf2_step = scene_.solver.method == Method::Bdf2 && has_prev_ && h_prev_ == h;
+  const bool bdf2_step = scene_.solver.method == Method::Bdf2;
   StepStats first = attempt(h, can_split, reject_newton);
   if (!first.ok && bdf2_step && energy_rejected_) {
-    // BDF2 is not dissipative step by step: a step that would gain energy is
-    // retried as backward Euler (order 1) at the same size, which keeps the
-    // history at h, before it costs a halving.
+    // Neither BDF2 nor its trapezoidal start is dissipative step by step: a
+    // step that would gain energy is retried as backward Euler (order 1) at
+    // the same size, which keeps the history at h, before it costs a halving.
     const std::string bdf2_failure = first.failure;
     const int rejected = first.rejected + 1;
     first = attempt(h, can_split, reject_newton, Method::Newton);

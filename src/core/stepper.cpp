@@ -50,13 +50,7 @@ StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
       stats = newtonSolve(model, h, 1.0, x, v, settings_.newton_max_iterations, x, v);
       break;
     case Method::Bdf2:
-      if (history.x_prev && history.v_prev && history.h_prev == h) {
-        ax_ = (4.0 * x - *history.x_prev) / 3.0;
-        av_ = (4.0 * v - *history.v_prev) / 3.0;
-        stats = newtonSolve(model, h, 2.0 / 3.0, ax_, av_, settings_.newton_max_iterations, x, v);
-      } else {  // first step, or the step size changed: one backward Euler step
-        stats = newtonSolve(model, h, 1.0, x, v, settings_.newton_max_iterations, x, v);
-      }
+      stats = bdf2(model, h, history, x, v);
       break;
     case Method::SymplecticEuler:
       stats = symplecticEuler(model, h, x, v);
@@ -69,6 +63,26 @@ StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
   }
   stats.wall_time_s = secondsSince(start);
   return stats;
+}
+
+StepStats Stepper::bdf2(const Model& model, double h, const History& history, VecX& x,
+                        VecX& v) {
+  const int max_it = settings_.newton_max_iterations;
+  if (history.x_prev && history.v_prev && history.h_prev == h) {
+    ax_ = (4.0 * x - *history.x_prev) / 3.0;
+    av_ = (4.0 * v - *history.v_prev) / 3.0;
+    // First iterate: v extrapolated linearly, O(h^2) from the answer (av is O(h)).
+    guess_ = 2.0 * v - *history.v_prev;
+    return newtonSolve(model, h, 2.0 / 3.0, ax_, av_, max_it, x, v, &guess_);
+  }
+  // Trapezoidal rule: x1 = x + h/2 (v + v1), M v1 = M v + h/2 (f(x, v) + f(x1, v1)).
+  computeForces(model, x, v, f_);
+  ax_ = x + 0.5 * h * v;
+  av_ = v;
+  for (int i = 0; i < model.numNodes(); ++i) {
+    av_.segment<3>(3 * i) += (0.5 * h / model.mass[i]) * f_.segment<3>(3 * i);
+  }
+  return newtonSolve(model, h, 0.5, ax_, av_, max_it, x, v);
 }
 
 StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v) {
@@ -129,13 +143,14 @@ double Stepper::residualFromForces(const Model& model, double bh, const VecX& av
 }
 
 StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const VecX& ax_in,
-                               const VecX& av_in, int max_iterations, VecX& x, VecX& v) {
+                               const VecX& av_in, int max_iterations, VecX& x, VecX& v,
+                               const VecX* guess) {
   StepStats stats;
   const double bh = beta * h;
   // ax/av may alias x/v: keep copies, x and v are the outputs.
   if (&ax_in != &ax_) ax_ = ax_in;
   if (&av_in != &av_) av_ = av_in;
-  v_trial_ = av_;
+  v_trial_ = guess ? *guess : av_;
   for (size_t k = 0; k < pins_->nodes.size(); ++k) {
     const int p = pins_->nodes[k];
     v_trial_.segment<3>(3 * p) = (pins_->targets[k] - ax_.segment<3>(3 * p)) / bh;

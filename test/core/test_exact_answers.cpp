@@ -53,6 +53,34 @@ TEST(FreeFall, UnpinnedClothWithSpringsFallsExactly) {
   }
 }
 
+// BDF2 and its trapezoidal start are exact on a quadratic trajectory: x_n is
+// the continuous x0 + 1/2 g t^2 itself (a backward-Euler start would leave
+// every later x_n off by 1/2 g h^2).
+TEST(FreeFall, Bdf2IsExactForConstantAcceleration) {
+  for (int max_iterations : {1, 20}) {
+    Scene s = bareScene(5, 5);
+    enable(s, SpringType::Stretch, 1000.0, 1.0);
+    enable(s, SpringType::Shear, 100.0, 0.5);
+    s.gravity = Vec3(0.3, -0.2, -9.81);
+    s.solver.method = Method::Bdf2;
+    s.solver.newton_max_iterations = max_iterations;
+    s.solver.dt = 0.01;
+    Simulation sim(s);
+    const VecX x0 = sim.positions();
+    for (int n = 1; n <= 200; ++n) {
+      const StepStats stats = sim.step();
+      ASSERT_TRUE(stats.ok) << stats.failure;
+      const double t = n * s.solver.dt;
+      for (int i = 0; i < sim.numNodes(); ++i) {
+        const Vec3 expected = x0.segment<3>(3 * i) + 0.5 * s.gravity * t * t;
+        ASSERT_LE((sim.position(i) - expected).norm(), 1e-11 * (1.0 + expected.norm()))
+            << max_iterations << " Newton iterations, node " << i << " step " << n;
+        ASSERT_LE((sim.velocities().segment<3>(3 * i) - s.gravity * t).norm(), 1e-10 * (1.0 + t * 9.81));
+      }
+    }
+  }
+}
+
 // One free node on a spring from a pinned node, moving along the axis. Linear,
 // so one backward-Euler step is exact: the energy norm sqrt(k u^2 + m v^2)
 // shrinks by exactly (1 + w^2 h^2)^(-1/2) per step.
