@@ -150,19 +150,36 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
   // ax/av may alias x/v: keep copies, x and v are the outputs.
   if (&ax_in != &ax_) ax_ = ax_in;
   if (&av_in != &av_) av_ = av_in;
-  v_trial_ = guess ? *guess : av_;
-  for (size_t k = 0; k < pins_->nodes.size(); ++k) {
-    const int p = pins_->nodes[k];
-    v_trial_.segment<3>(3 * p) = (pins_->targets[k] - ax_.segment<3>(3 * p)) / bh;
-  }
+  // Pinned nodes move to their targets: v = (target - ax) / (beta h).
+  auto pinVelocities = [&](VecX& v_start) {
+    for (size_t k = 0; k < pins_->nodes.size(); ++k) {
+      const int p = pins_->nodes[k];
+      v_start.segment<3>(3 * p) = (pins_->targets[k] - ax_.segment<3>(3 * p)) / bh;
+    }
+  };
   VecX& v1 = v;
-  v1 = v_trial_;
+  v1 = guess ? *guess : av_;
+  pinVelocities(v1);
   // Every iterate's forces come from one evaluation: the assembly gives f at
   // the start, the line search's accepted trial the g of the next iterate.
   auto t0 = Clock::now();
   x = ax_ + bh * v1;
   assembleSystem(model, x, v1, bh, bh * bh, settings_.project_compression, A_, f_);
-  const double g0 = residualFromForces(model, bh, av_, v1, f_, g_);
+  double g0 = residualFromForces(model, bh, av_, v1, f_, g_);
+  if (guess) {
+    // The extrapolated guess is usually far closer than av; but at a step too
+    // large for the motion, extrapolating what a loose solve left of the stiff
+    // modes amplifies it (the one-iteration cloth then blows up). Start from
+    // whichever has the smaller residual: one more force evaluation.
+    v_trial_ = av_;
+    pinVelocities(v_trial_);
+    if (residual(model, bh, ax_, av_, v_trial_, x_trial_, g_trial_) < g0) {
+      v1 = v_trial_;
+      x = ax_ + bh * v1;
+      assembleSystem(model, x, v1, bh, bh * bh, settings_.project_compression, A_, f_);
+      g0 = residualFromForces(model, bh, av_, v1, f_, g_);
+    }
+  }
   double g_norm = g0;
   stats.assembly_s += secondsSince(t0);
   // ||g|| is only known to the round-off of its terms (M v, and b h f with an
