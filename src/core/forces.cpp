@@ -87,9 +87,7 @@ void assembleSystem(const Model& model, const VecX& x, const VecX& v, double a, 
         s_iso += a * g.damping;
       }
     }
-    Mat3 S = (s_axis * u) * u.transpose();
-    S.diagonal().array() += s_iso;
-    A.setCoupling(static_cast<int>(k), s.i, s.j, S);
+    A.setCoupling(static_cast<int>(k), s.i, s.j, s_iso, s_axis, u);
     f.segment<3>(3 * s.i) += fi;
     f.segment<3>(3 * s.j) -= fi;
     if (dfdx_w) {

@@ -10,6 +10,7 @@
 
 namespace cloth_sim {
 
+
 namespace {
 
 /// Fine lines that carry a coarse line: every other one and the last one
@@ -279,12 +280,12 @@ void MultigridPreconditioner::buildCoarseSolver() {
 void MultigridPreconditioner::fillFinest(const SystemMatrix& A, const std::vector<Spring>& springs) {
   Level& level = levels_.front();
   for (int i = 0; i < level.num_nodes; ++i) {
-    level.node_block[i] = level.free[i] ? SymBlock::from(A.fullDiag(i)) : identityBlock();
+    level.node_block[i] = level.free[i] ? A.fullDiagBlock(i) : identityBlock();
   }
   std::fill(level.lower_block.begin(), level.lower_block.end(), SymBlock());
   const std::vector<char>& free = level.free;
   for (size_t k = 0; k < springs.size(); ++k) {
-    const SymBlock S = SymBlock::from(A.coupling(static_cast<int>(k)));
+    const SymBlock S = A.couplingBlock(static_cast<int>(k));
     const int m = via_node_[k];
     if (m < 0) {
       if (spring_block_[k] >= 0) level.lower_block[spring_block_[k]].addScaled(-1.0, S);
@@ -396,14 +397,58 @@ bool MultigridPreconditioner::setup(const SystemMatrix& A, const std::vector<Spr
     }
   }
   ready_ = false;
+  reused_ = false;
+  rebuild_due_ = true;  // until this fill succeeds
+  ++rebuilds_;
   fillFinest(A, springs);
   for (size_t l = 0; l + 1 < levels_.size(); ++l) {
     if (!prepareSmoother(levels_[l])) return false;
     galerkin(levels_[l], levels_[l + 1]);
   }
   if (!factorCoarsest()) return false;
+  const int n = A.numNodes();
+  built_trace_.resize(n);
+  for (int i = 0; i < n; ++i) built_trace_[i] = A.fullDiagBlock(i).trace();
+  solves_since_build_ = 0;
+  first_iterations_ = 0;
+  rebuild_due_ = false;
   ready_ = true;
   return true;
+}
+
+bool MultigridPreconditioner::prepare(const SystemMatrix& A, const std::vector<Spring>& springs,
+                                      const std::vector<char>& free, int rows, int cols,
+                                      int max_solves) {
+  bool reuse = ready_ && !rebuild_due_ && solves_since_build_ < max_solves && rows == rows_ &&
+               cols == cols_ && free == free_key_ && A.numNodes() == rows * cols &&
+               2 * springs.size() == spring_ends_.size();
+  for (size_t k = 0; reuse && k < springs.size(); ++k) {
+    reuse = springs[k].i == spring_ends_[2 * k] && springs[k].j == spring_ends_[2 * k + 1];
+  }
+  for (int i = 0; reuse && i < A.numNodes(); ++i) {
+    reuse = !free[i] || std::abs(A.fullDiagBlock(i).trace() - built_trace_[i]) <=
+                            kTraceChange * std::abs(built_trace_[i]);
+  }
+  if (!reuse) return setup(A, springs, free, rows, cols);
+  // The finest level's smoother follows the current matrix (its stiff springs
+  // turn every step, and a stale smoother costs an extra CG iteration after a
+  // single step); only the coarse levels are kept.
+  reused_ = true;
+  fillFinest(A, springs);
+  if (!prepareSmoother(levels_.front())) {
+    ready_ = false;
+    return false;
+  }
+  return true;
+}
+
+void MultigridPreconditioner::recordSolve(int iterations) {
+  ++solves_since_build_;
+  if (first_iterations_ == 0) {
+    first_iterations_ = iterations;  // the first solve that iterated at all
+  } else if (iterations > kIterationGrowth * first_iterations_) {
+    rebuild_due_ = true;
+  }
 }
 
 void MultigridPreconditioner::vcycle(int l) {

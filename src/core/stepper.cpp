@@ -35,6 +35,7 @@ void Stepper::setPins(const Model& model, const PinnedEnds& pins) {
   pins_ = &pins;
   cg_.grid_rows = model.rows;
   cg_.grid_cols = model.cols;
+  cg_.multigrid_max_solves = settings_.multigrid_reuse;
 }
 
 StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
