@@ -30,8 +30,7 @@ class SystemMatrix {
   /// Sets the node blocks to mass_i * I (+ extra_diagonal * I). Couplings are
   /// then set by setCoupling for every spring.
   void reset(const std::vector<double>& mass, double extra_diagonal = 0.0);
-  /// Sets spring k's block S = iso I + axis u u^T (u unit) and adds it to
-  /// both nodes' full diagonal blocks.
+  /// Sets spring k's block S = iso I + axis u u^T (u unit).
   void setCoupling(int spring, int i, int j, double iso, double axis, const Vec3& u) {
     Coupling& c = coupling_[spring];
     c.i = i;
@@ -41,10 +40,10 @@ class SystemMatrix {
     c.u[0] = u[0];
     c.u[1] = u[1];
     c.u[2] = u[2];
-    const SymBlock S = couplingBlock(spring);
-    full_diag_[i].addScaled(1.0, S);
-    full_diag_[j].addScaled(1.0, S);
+    full_diag_valid_ = false;
   }
+  /// Node block without the couplings: nodeScale(i) * I.
+  double nodeScale(int node) const { return node_scale_[node]; }
   Mat3 diag(int node) const { return node_scale_[node] * Mat3::Identity(); }
   Mat3 coupling(int spring) const { return couplingBlock(spring).toMat3(); }
   SymBlock couplingBlock(int spring) const {
@@ -56,9 +55,11 @@ class SystemMatrix {
 
   /// y = A x, restricted to free nodes (pinned rows and columns act as zero).
   void multiply(const std::vector<char>& free, const VecX& x, VecX& y) const;
-  /// Full diagonal block of node i including its springs' couplings.
-  Mat3 fullDiag(int node) const { return full_diag_[node].toMat3(); }
-  const SymBlock& fullDiagBlock(int node) const { return full_diag_[node]; }
+  /// Full diagonal block of node i including its springs' couplings (summed
+  /// on first use after the couplings changed: only block Jacobi and Cholesky
+  /// need them).
+  Mat3 fullDiag(int node) const { return fullDiagonal()[node].toMat3(); }
+  const std::vector<SymBlock>& fullDiagonal() const;
 
  private:
   struct Coupling {
@@ -68,7 +69,8 @@ class SystemMatrix {
   };
   std::vector<double> node_scale_;  ///< node block = node_scale_ * I
   std::vector<Coupling> coupling_;
-  std::vector<SymBlock> full_diag_;
+  mutable std::vector<SymBlock> full_diag_;
+  mutable bool full_diag_valid_ = false;
 };
 
 struct CgResult {

@@ -159,6 +159,13 @@ class MultigridPreconditioner {
     VecX x, b, r;  ///< V-cycle buffers
   };
 
+  void checkGrid(const SystemMatrix& A, int rows, int cols) const;
+  bool matchesStructure(const std::vector<Spring>& springs, const std::vector<char>& free,
+                        int rows, int cols) const;
+  void buildStructure(const std::vector<Spring>& springs, const std::vector<char>& free,
+                      int rows, int cols);
+  /// Smoothers, Galerkin products and coarsest factor from the filled finest level.
+  bool rebuildCoarse();
   void buildHierarchy(const std::vector<Spring>& springs, const std::vector<char>& free,
                       int rows, int cols);
   void buildCoarseSolver();
@@ -183,7 +190,7 @@ class MultigridPreconditioner {
   std::vector<int> spring_ends_;
   std::vector<char> free_key_;
   bool ready_ = false;
-  // Reuse state: the diagonal traces the hierarchy was built from, solves
+  // Reuse state: the finest node blocks' traces the coarse levels were built from, solves
   // since then, the first solve's iterations.
   std::vector<double> built_trace_;
   int solves_since_build_ = 0;

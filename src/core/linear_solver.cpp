@@ -7,15 +7,29 @@ namespace cloth_sim {
 
 void SystemMatrix::resize(int num_nodes, int num_springs) {
   node_scale_.resize(num_nodes);
-  full_diag_.resize(num_nodes);
   coupling_.resize(num_springs);
+  full_diag_valid_ = false;
 }
 
 void SystemMatrix::reset(const std::vector<double>& mass, double extra_diagonal) {
+  for (size_t i = 0; i < node_scale_.size(); ++i) node_scale_[i] = mass[i] + extra_diagonal;
+  full_diag_valid_ = false;
+}
+
+const std::vector<SymBlock>& SystemMatrix::fullDiagonal() const {
+  if (full_diag_valid_) return full_diag_;
+  full_diag_.resize(node_scale_.size());
   for (size_t i = 0; i < node_scale_.size(); ++i) {
-    node_scale_[i] = mass[i] + extra_diagonal;
-    full_diag_[i] = {{node_scale_[i], node_scale_[i], node_scale_[i], 0.0, 0.0, 0.0}};
+    const double m = node_scale_[i];
+    full_diag_[i] = {{m, m, m, 0.0, 0.0, 0.0}};
   }
+  for (size_t k = 0; k < coupling_.size(); ++k) {
+    const SymBlock S = couplingBlock(static_cast<int>(k));
+    full_diag_[coupling_[k].i].addScaled(1.0, S);
+    full_diag_[coupling_[k].j].addScaled(1.0, S);
+  }
+  full_diag_valid_ = true;
+  return full_diag_;
 }
 
 void SystemMatrix::multiply(const std::vector<char>& free, const VecX& x_in, VecX& y_out) const {
