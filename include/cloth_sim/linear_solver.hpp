@@ -112,7 +112,7 @@ class CholeskyFactor {
 /// Reused buffers, so a solve allocates nothing once sized.
 struct CgWorkspace {
   VecX r, z, p, q;
-  std::vector<Mat3> inv_diag;
+  std::vector<SymBlock> inv_diag;  ///< block Jacobi
   std::shared_ptr<CholeskyFactor> cholesky;  ///< made on first use
   std::shared_ptr<MultigridPreconditioner> multigrid;  ///< made on first use
   /// The cloth grid (node = row * cols + col); the multigrid needs it.

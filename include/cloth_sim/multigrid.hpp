@@ -84,6 +84,14 @@ struct SymBlock {
             v[4] * x[0] + v[5] * x[1] + v[2] * x[2]};
   }
   double trace() const { return v[0] + v[1] + v[2]; }
+  /// The inverse by cofactors (symmetric too); non-finite if singular.
+  SymBlock inverse() const {
+    const double c_xx = v[1] * v[2] - v[5] * v[5], c_yy = v[0] * v[2] - v[4] * v[4],
+                 c_zz = v[0] * v[1] - v[3] * v[3], c_xy = v[4] * v[5] - v[3] * v[2],
+                 c_xz = v[3] * v[5] - v[4] * v[1], c_yz = v[3] * v[4] - v[0] * v[5];
+    const double s = 1.0 / (v[0] * c_xx + v[3] * c_xy + v[4] * c_xz);
+    return {{s * c_xx, s * c_yy, s * c_zz, s * c_xy, s * c_xz, s * c_yz}};
+  }
   void addScaled(double s, const SymBlock& b) {
     for (int k = 0; k < 6; ++k) v[k] += s * b.v[k];
   }

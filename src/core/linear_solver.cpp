@@ -149,7 +149,7 @@ void applyPreconditioner(Preconditioner kind, CgWorkspace& ws, const std::vector
   const int n = static_cast<int>(ws.inv_diag.size());
   for (int i = 0; i < n; ++i) {
     if (free[i]) {
-      z.segment<3>(3 * i).noalias() = ws.inv_diag[i] * r.segment<3>(3 * i);
+      z.segment<3>(3 * i) = ws.inv_diag[i] * Vec3(r.segment<3>(3 * i));
     } else {
       z.segment<3>(3 * i).setZero();
     }
@@ -191,7 +191,8 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
   }
   if (preconditioner == Preconditioner::BlockJacobi) {
     ws.inv_diag.resize(n);
-    for (int i = 0; i < n; ++i) ws.inv_diag[i] = A.fullDiag(i).inverse();
+    const std::vector<SymBlock>& diag = A.fullDiagonal();
+    for (int i = 0; i < n; ++i) ws.inv_diag[i] = diag[i].inverse();
   } else if (preconditioner == Preconditioner::Cholesky) {
     if (!ws.cholesky) ws.cholesky = std::make_shared<CholeskyFactor>();
     fresh_factor = !ws.cholesky->isValidFor(free) ||

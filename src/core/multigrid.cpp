@@ -351,15 +351,9 @@ bool MultigridPreconditioner::prepareSmoother(Level& level) const {
       level.inv_node_block[i] = SymBlock();  // keeps a fixed node's x at zero
       continue;
     }
-    // The symmetric block's inverse by cofactors (symmetric too).
-    const double* m = level.node_block[i].v;  // xx yy zz xy xz yz
-    const double c_xx = m[1] * m[2] - m[5] * m[5], c_yy = m[0] * m[2] - m[4] * m[4],
-                 c_zz = m[0] * m[1] - m[3] * m[3], c_xy = m[4] * m[5] - m[3] * m[2],
-                 c_xz = m[3] * m[5] - m[4] * m[1], c_yz = m[3] * m[4] - m[0] * m[5];
-    const double det = m[0] * c_xx + m[3] * c_xy + m[4] * c_xz;
-    const double s = 1.0 / det;
-    level.inv_node_block[i] = {{s * c_xx, s * c_yy, s * c_zz, s * c_xy, s * c_xz, s * c_yz}};
-    if (!std::isfinite(s) || !std::isfinite(s * c_xx)) return false;
+    level.inv_node_block[i] = level.node_block[i].inverse();
+    const double* inv = level.inv_node_block[i].v;
+    if (!std::isfinite(inv[0]) || !std::isfinite(inv[1]) || !std::isfinite(inv[2])) return false;
   }
   return true;
 }
