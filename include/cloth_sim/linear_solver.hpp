@@ -1,8 +1,14 @@
 // The system matrix A = M - b h df/dv - b^2 h^2 df/dx of an implicit step,
-// stored per node (3x3 diagonal blocks) and per spring (one symmetric 3x3
-// coupling block S, entering as A_ii += S, A_jj += S, A_ij = A_ji = -S), so
-// the sparsity pattern is the spring list: fixed, refilled in place each step.
-// Pinned DOFs are eliminated: the solve runs on the free nodes only.
+// stored per node (its mass block, a multiple of I) and per spring (one
+// symmetric 3x3 coupling block S, entering as A_ii += S, A_jj += S,
+// A_ij = A_ji = -S), so the sparsity pattern is the spring list: fixed,
+// refilled in place each step. Pinned DOFs are eliminated: the solve runs on
+// the free nodes only.
+//
+// A spring's S is iso I + axis u u^T (its stiffness and damping act along its
+// axis u and isotropically), stored as those 5 numbers with its two node
+// indices: 48 bytes a spring, read once per CG product (a full 3x3 block and
+// the ends took 80), and less to write in the assembly.
 #pragma once
 
 #include <Eigen/Sparse>
@@ -20,32 +26,51 @@ namespace cloth_sim {
 class SystemMatrix {
  public:
   void resize(int num_nodes, int num_springs);
-  int numNodes() const { return static_cast<int>(diag_.size()); }
+  int numNodes() const { return static_cast<int>(node_scale_.size()); }
   /// Sets the node blocks to mass_i * I (+ extra_diagonal * I). Couplings are
   /// then set by setCoupling for every spring.
   void reset(const std::vector<double>& mass, double extra_diagonal = 0.0);
-  /// Sets spring k's block S and adds it to both nodes' full diagonal blocks.
-  void setCoupling(int spring, int i, int j, const Mat3& S) {
-    coupling_[spring] = S;
-    ends_[spring] = {i, j};
-    full_diag_[i] += S;
-    full_diag_[j] += S;
+  /// Sets spring k's block S = iso I + axis u u^T (u unit).
+  void setCoupling(int spring, int i, int j, double iso, double axis, const Vec3& u) {
+    Coupling& c = coupling_[spring];
+    c.i = i;
+    c.j = j;
+    c.iso = iso;
+    c.axis = axis;
+    c.u[0] = u[0];
+    c.u[1] = u[1];
+    c.u[2] = u[2];
+    full_diag_valid_ = false;
   }
-  const Mat3& diag(int node) const { return diag_[node]; }
-  const Mat3& coupling(int spring) const { return coupling_[spring]; }
+  /// Node block without the couplings: nodeScale(i) * I.
+  double nodeScale(int node) const { return node_scale_[node]; }
+  Mat3 diag(int node) const { return node_scale_[node] * Mat3::Identity(); }
+  Mat3 coupling(int spring) const { return couplingBlock(spring).toMat3(); }
+  SymBlock couplingBlock(int spring) const {
+    const Coupling& c = coupling_[spring];
+    const double a = c.axis;
+    return {{c.iso + a * c.u[0] * c.u[0], c.iso + a * c.u[1] * c.u[1], c.iso + a * c.u[2] * c.u[2],
+             a * c.u[0] * c.u[1], a * c.u[0] * c.u[2], a * c.u[1] * c.u[2]}};
+  }
 
   /// y = A x, restricted to free nodes (pinned rows and columns act as zero).
   void multiply(const std::vector<char>& free, const VecX& x, VecX& y) const;
-  /// Full diagonal block of node i including its springs' couplings.
-  const Mat3& fullDiag(int node) const { return full_diag_[node]; }
+  /// Full diagonal block of node i including its springs' couplings (summed
+  /// on first use after the couplings changed: only block Jacobi and Cholesky
+  /// need them).
+  Mat3 fullDiag(int node) const { return fullDiagonal()[node].toMat3(); }
+  const std::vector<SymBlock>& fullDiagonal() const;
 
  private:
-  std::vector<Mat3> diag_;
-  std::vector<Mat3> coupling_;
-  std::vector<Mat3> full_diag_;
-  /// Each spring's nodes, as setCoupling got them: the product reads these
-  /// 8 bytes, not the whole Spring.
-  std::vector<std::array<int, 2>> ends_;
+  struct Coupling {
+    int i, j;
+    double iso, axis;
+    double u[3];
+  };
+  std::vector<double> node_scale_;  ///< node block = node_scale_ * I
+  std::vector<Coupling> coupling_;
+  mutable std::vector<SymBlock> full_diag_;
+  mutable bool full_diag_valid_ = false;
 };
 
 struct CgResult {
@@ -87,11 +112,13 @@ class CholeskyFactor {
 /// Reused buffers, so a solve allocates nothing once sized.
 struct CgWorkspace {
   VecX r, z, p, q;
-  std::vector<Mat3> inv_diag;
+  std::vector<SymBlock> inv_diag;  ///< block Jacobi
   std::shared_ptr<CholeskyFactor> cholesky;  ///< made on first use
   std::shared_ptr<MultigridPreconditioner> multigrid;  ///< made on first use
   /// The cloth grid (node = row * cols + col); the multigrid needs it.
   int grid_rows = 0, grid_cols = 0;
+  /// Solves one multigrid hierarchy may serve (MultigridPreconditioner::prepare); 1: rebuilt every solve.
+  int multigrid_max_solves = 1;
   int last_iterations = 0;
   int factorizations = 0;  ///< count, for the benchmark
 };

@@ -24,6 +24,7 @@ struct SpringGroup {
   double damping = 0.0;
   int begin = 0;  ///< springs [begin, end) of this group in Model::springs
   int end = 0;
+  double rest_length_sq = 0.0;  ///< sum of the group's rest lengths squared (springForceScale)
 };
 
 struct Model {

@@ -26,6 +26,28 @@
 // on the cloth and 25 on the coarse grids, a third of the smoothing and
 // Galerkin work.
 //
+// Reuse across solves (prepare): any fixed SPD operator is a valid PCG
+// preconditioner, only the iteration count depends on how close it is to the
+// current matrix. So the coarse levels (Galerkin products, their smoothers,
+// the coarsest factor) are kept for a few solves, while the finest level is
+// refilled from the current matrix every solve: the stiff springs turn a
+// little every step, and a V-cycle kept whole costs 1-1.5 more CG iterations
+// on the hanging cloth after a single step (more than the setup it saves);
+// with a fresh finest level the count grows by about 0.1 a solve. CG's
+// product always uses the current matrix, so the answer is unchanged. The
+// V-cycle stays SPD with levels from different matrices, as long as each
+// level smooths and forms its residual with one matrix A_l: with G = D_l +
+// L_l its forward sweep, level l's operator is
+//   B_l = G^-T D_l G^-1 + (I - G^-T A_l) P B_(l+1) P^T (I - A_l G^-1),
+// symmetric if B_(l+1) is, positive definite if B_(l+1) is and A_l's node
+// blocks D_l are.
+// The coarse levels are rebuilt from the current matrix when the pins, grid
+// or springs change, when any free node's diagonal trace moved by more than
+// kTraceChange relative (a new step size or stiffness), after max_solves
+// solves, when a solve needed more than kIterationGrowth times the
+// iterations of the first solve after the rebuild, or when CG gives up on
+// them (invalidate).
+//
 // Storage: every block of these matrices is symmetric (a spring's coupling S,
 // the node blocks, and weighted sums of them), and the matrices are symmetric:
 // each level keeps its node blocks and its strictly lower blocks, 6 numbers a
@@ -35,6 +57,7 @@
 
 #include <Eigen/Sparse>
 #include <Eigen/SparseCholesky>
+#include <algorithm>
 #include <vector>
 
 #include "cloth_sim/model.hpp"
@@ -60,6 +83,15 @@ struct SymBlock {
     return {v[0] * x[0] + v[3] * x[1] + v[4] * x[2], v[3] * x[0] + v[1] * x[1] + v[5] * x[2],
             v[4] * x[0] + v[5] * x[1] + v[2] * x[2]};
   }
+  double trace() const { return v[0] + v[1] + v[2]; }
+  /// The inverse by cofactors (symmetric too); non-finite if singular.
+  SymBlock inverse() const {
+    const double c_xx = v[1] * v[2] - v[5] * v[5], c_yy = v[0] * v[2] - v[4] * v[4],
+                 c_zz = v[0] * v[1] - v[3] * v[3], c_xy = v[4] * v[5] - v[3] * v[2],
+                 c_xz = v[3] * v[5] - v[4] * v[1], c_yz = v[3] * v[4] - v[0] * v[5];
+    const double s = 1.0 / (v[0] * c_xx + v[3] * c_xy + v[4] * c_xz);
+    return {{s * c_xx, s * c_yy, s * c_zz, s * c_xy, s * c_xz, s * c_yz}};
+  }
   void addScaled(double s, const SymBlock& b) {
     for (int k = 0; k < 6; ++k) v[k] += s * b.v[k];
   }
@@ -77,6 +109,30 @@ class MultigridPreconditioner {
   /// rows * cols is not A's node count.
   bool setup(const SystemMatrix& A, const std::vector<Spring>& springs,
              const std::vector<char>& free, int rows, int cols);
+
+  /// A rebuild comes due when a node's diagonal trace moved by more than this
+  /// fraction since the hierarchy was built (dt, stiffness or mass changed).
+  static constexpr double kTraceChange = 0.25;
+  /// ... or when a solve took more than this times the first solve's iterations.
+  static constexpr double kIterationGrowth = 1.5;
+
+  /// Like setup, but keeps the coarse levels built from an earlier matrix for
+  /// up to max_solves solves while they still serve (see the header comment);
+  /// the finest level is always refilled from A. max_solves = 1 rebuilds
+  /// every time. Returns false if a node block or the coarsest matrix cannot
+  /// be factored.
+  bool prepare(const SystemMatrix& A, const std::vector<Spring>& springs,
+               const std::vector<char>& free, int rows, int cols, int max_solves);
+  /// Tells the reuse rule how many CG iterations a solve with it took.
+  void recordSolve(int iterations);
+  /// The next prepare rebuilds (CG found the reused hierarchy too stale).
+  void invalidate() { rebuild_due_ = true; }
+  /// Whether the last prepare kept an earlier matrix's coarse levels.
+  bool reused() const { return reused_; }
+  /// CG iterations reused coarse levels get before they are replaced mid-solve.
+  int staleIterations() const { return std::max(2 * first_iterations_, first_iterations_ + 4); }
+  /// Count of full refills (setup calls), for tests and the benchmark.
+  int rebuilds() const { return rebuilds_; }
 
   /// z = B r, B the V-cycle (SPD on the free DOFs); pinned entries of z are
   /// zero and pinned entries of r are ignored.
@@ -111,6 +167,13 @@ class MultigridPreconditioner {
     VecX x, b, r;  ///< V-cycle buffers
   };
 
+  void checkGrid(const SystemMatrix& A, int rows, int cols) const;
+  bool matchesStructure(const std::vector<Spring>& springs, const std::vector<char>& free,
+                        int rows, int cols) const;
+  void buildStructure(const std::vector<Spring>& springs, const std::vector<char>& free,
+                      int rows, int cols);
+  /// Smoothers, Galerkin products and coarsest factor from the filled finest level.
+  bool rebuildCoarse();
   void buildHierarchy(const std::vector<Spring>& springs, const std::vector<char>& free,
                       int rows, int cols);
   void buildCoarseSolver();
@@ -135,6 +198,14 @@ class MultigridPreconditioner {
   std::vector<int> spring_ends_;
   std::vector<char> free_key_;
   bool ready_ = false;
+  // Reuse state: the finest node blocks' traces the coarse levels were built from, solves
+  // since then, the first solve's iterations.
+  std::vector<double> built_trace_;
+  int solves_since_build_ = 0;
+  int first_iterations_ = 0;
+  bool rebuild_due_ = true;
+  bool reused_ = false;
+  int rebuilds_ = 0;
 };
 
 }  // namespace cloth_sim

@@ -76,7 +76,7 @@ class Stepper {
   const PinnedEnds* pins_ = nullptr;
   SystemMatrix A_;
   CgWorkspace cg_;
-  VecX f_, rhs_, dv_, dfdx_v_, g_, x_trial_, v_trial_, g_trial_, delta_, ax_, av_, pinned_dv_;
+  VecX f_, rhs_, dv_, dfdx_v_, g_, x_trial_, v_trial_, g_trial_, delta_, delta_first_, ax_, av_, pinned_dv_;
   VecX x_best_, v_best_, g_best_;  ///< the line search's best trial
   VecX guess_;                      ///< bdf2's extrapolated first iterate
 };

@@ -34,20 +34,24 @@ void computeForces(const Model& model, const VecX& x, const VecX& v, VecX& f) {
   f.resize(x.size());
   addExternalForces(model, v, f);
   // springForce's arithmetic, inlined: no SpringParams copy per spring (the
-  // Newton steppers call this several times a step).
+  // Newton steppers call this several times a step); one loop per group, so
+  // its constants and the damping branch are hoisted.
   const bool along = model.damping_model == DampingModel::AlongSpring;
-  for (const Spring& s : model.springs) {
-    const SpringGroup& g = model.groups[static_cast<int>(s.type)];
-    const Vec3 d = x.segment<3>(3 * s.j) - x.segment<3>(3 * s.i);
-    const double l = d.norm();
-    const Vec3 u = springDirection(d, l, s.rest_length, s.rest_direction);
-    Vec3 fi = g.stiffness * (l - s.rest_length) * u;
-    if (g.damping != 0.0) {
-      const Vec3 dv = v.segment<3>(3 * s.j) - v.segment<3>(3 * s.i);
-      fi += along ? Vec3(g.damping * dv.dot(u) * u) : Vec3(g.damping * dv);
+  for (const SpringGroup& g : model.groups) {
+    const double stiffness = g.stiffness, damping = g.damping;
+    for (int k = g.begin; k < g.end; ++k) {
+      const Spring& s = model.springs[k];
+      const Vec3 d = x.segment<3>(3 * s.j) - x.segment<3>(3 * s.i);
+      const double l = d.norm();
+      const Vec3 u = springDirection(d, l, s.rest_length, s.rest_direction);
+      Vec3 fi = stiffness * (l - s.rest_length) * u;
+      if (damping != 0.0) {
+        const Vec3 dv = v.segment<3>(3 * s.j) - v.segment<3>(3 * s.i);
+        fi += along ? Vec3(damping * dv.dot(u) * u) : Vec3(damping * dv);
+      }
+      f.segment<3>(3 * s.i) += fi;
+      f.segment<3>(3 * s.j) -= fi;
     }
-    f.segment<3>(3 * s.i) += fi;
-    f.segment<3>(3 * s.j) -= fi;
   }
 }
 
@@ -60,43 +64,39 @@ void assembleSystem(const Model& model, const VecX& x, const VecX& v, double a, 
   f.resize(x.size());
   addExternalForces(model, v, f);
   if (dfdx_w) dfdx_w->setZero(x.size());
-  // Force and Jacobian share the axis: one pass, one sqrt per spring.
+  // Force and Jacobian share the axis: one pass, one sqrt per spring; one
+  // loop per group (its constants hoisted).
   const bool along = model.damping_model == DampingModel::AlongSpring;
-  for (size_t k = 0; k < model.springs.size(); ++k) {
-    const Spring& s = model.springs[k];
-    const SpringGroup& g = model.groups[static_cast<int>(s.type)];
-    const Vec3 d = x.segment<3>(3 * s.j) - x.segment<3>(3 * s.i);
-    const Vec3 dv = v.segment<3>(3 * s.j) - v.segment<3>(3 * s.i);
-    const double l = d.norm();
-    const bool degenerate = isDegenerate(l, s.rest_length);
-    const Vec3 u = springDirection(d, l, s.rest_length, s.rest_direction);
-    // K = k (1 - t) u u^T + k t I with t = 1 - L/l (clamped at 0 under
-    // compression when projecting; 0 when degenerate): kept as two scalars,
-    // so S = b K (+ damping) is one outer product and a diagonal shift.
-    double t = degenerate ? 0.0 : 1.0 - s.rest_length / l;
-    if (project_compression) t = std::max(t, 0.0);
-    const double k_iso = g.stiffness * t, k_axis = g.stiffness - k_iso;
-    Vec3 fi = g.stiffness * (l - s.rest_length) * u;
-    double s_iso = b * k_iso, s_axis = b * k_axis;
-    if (g.damping != 0.0) {
-      if (along) {
-        fi += (g.damping * dv.dot(u)) * u;
-        s_axis += a * g.damping;
-      } else {
-        fi += g.damping * dv;
-        s_iso += a * g.damping;
+  for (const SpringGroup& g : model.groups) {
+    const double stiffness = g.stiffness, damping = g.damping;
+    // Damping adds a h c along the axis or isotropically.
+    const double damping_axis = along ? a * damping : 0.0, damping_iso = along ? 0.0 : a * damping;
+    for (int k = g.begin; k < g.end; ++k) {
+      const Spring& s = model.springs[k];
+      const Vec3 d = x.segment<3>(3 * s.j) - x.segment<3>(3 * s.i);
+      const double l = d.norm();
+      const bool degenerate = isDegenerate(l, s.rest_length);
+      const Vec3 u = springDirection(d, l, s.rest_length, s.rest_direction);
+      // K = k (1 - t) u u^T + k t I with t = 1 - L/l (clamped at 0 under
+      // compression when projecting; 0 when degenerate): kept as two scalars,
+      // so S = b K (+ damping) is one outer product and a diagonal shift.
+      double t = degenerate ? 0.0 : 1.0 - s.rest_length / l;
+      if (project_compression) t = std::max(t, 0.0);
+      const double k_iso = stiffness * t, k_axis = stiffness - k_iso;
+      Vec3 fi = stiffness * (l - s.rest_length) * u;
+      if (damping != 0.0) {
+        const Vec3 dv = v.segment<3>(3 * s.j) - v.segment<3>(3 * s.i);
+        fi += along ? Vec3((damping * dv.dot(u)) * u) : Vec3(damping * dv);
       }
-    }
-    Mat3 S = (s_axis * u) * u.transpose();
-    S.diagonal().array() += s_iso;
-    A.setCoupling(static_cast<int>(k), s.i, s.j, S);
-    f.segment<3>(3 * s.i) += fi;
-    f.segment<3>(3 * s.j) -= fi;
-    if (dfdx_w) {
-      const Vec3 dw = w->segment<3>(3 * s.j) - w->segment<3>(3 * s.i);
-      const Vec3 kdw = k_iso * dw + (k_axis * u.dot(dw)) * u;
-      dfdx_w->segment<3>(3 * s.i) += kdw;
-      dfdx_w->segment<3>(3 * s.j) -= kdw;
+      A.setCoupling(k, s.i, s.j, b * k_iso + damping_iso, b * k_axis + damping_axis, u);
+      f.segment<3>(3 * s.i) += fi;
+      f.segment<3>(3 * s.j) -= fi;
+      if (dfdx_w) {
+        const Vec3 dw = w->segment<3>(3 * s.j) - w->segment<3>(3 * s.i);
+        const Vec3 kdw = k_iso * dw + (k_axis * u.dot(dw)) * u;
+        dfdx_w->segment<3>(3 * s.i) += kdw;
+        dfdx_w->segment<3>(3 * s.j) -= kdw;
+      }
     }
   }
 }
@@ -105,11 +105,16 @@ EnergyParts measureEnergy(const Model& model, const VecX& x, const VecX& v) {
   EnergyParts e;
   e.kinetic = kineticEnergy(model, v);
   e.potential = gravityEnergy(model, x);
-  for (const Spring& s : model.springs) {
-    const double l = (x.segment<3>(3 * s.j) - x.segment<3>(3 * s.i)).norm();
-    const double stretch = l - s.rest_length;
-    e.elastic += 0.5 * model.groups[static_cast<int>(s.type)].stiffness * stretch * stretch;
-    e.max_strain = std::max(e.max_strain, l / s.rest_length - 1.0);
+  for (const SpringGroup& g : model.groups) {
+    double sum = 0.0;  // sum of (l - L)^2 over the group
+    for (int k = g.begin; k < g.end; ++k) {
+      const Spring& s = model.springs[k];
+      const double l = (x.segment<3>(3 * s.j) - x.segment<3>(3 * s.i)).norm();
+      const double stretch = l - s.rest_length;
+      sum += stretch * stretch;
+      e.max_strain = std::max(e.max_strain, l / s.rest_length - 1.0);
+    }
+    e.elastic += 0.5 * g.stiffness * sum;
   }
   return e;
 }
@@ -144,11 +149,10 @@ double maxStrain(const Model& model, const VecX& x) {
 }
 
 double springForceScale(const Model& model) {
+  // Per group from its sum of L^2 (kept by buildModel): the Newton steppers
+  // ask every step, and the springs never change.
   double sum = 0.0;
-  for (const Spring& s : model.springs) {
-    const double kl = model.groups[static_cast<int>(s.type)].stiffness * s.rest_length;
-    sum += kl * kl;
-  }
+  for (const SpringGroup& g : model.groups) sum += g.stiffness * g.stiffness * g.rest_length_sq;
   return std::sqrt(sum);
 }
 

@@ -6,32 +6,62 @@
 namespace cloth_sim {
 
 void SystemMatrix::resize(int num_nodes, int num_springs) {
-  diag_.resize(num_nodes);
-  full_diag_.resize(num_nodes);
+  node_scale_.resize(num_nodes);
   coupling_.resize(num_springs);
-  ends_.resize(num_springs);
+  full_diag_valid_ = false;
 }
 
 void SystemMatrix::reset(const std::vector<double>& mass, double extra_diagonal) {
-  for (size_t i = 0; i < diag_.size(); ++i) {
-    diag_[i] = (mass[i] + extra_diagonal) * Mat3::Identity();
-    full_diag_[i] = diag_[i];
-  }
+  for (size_t i = 0; i < node_scale_.size(); ++i) node_scale_[i] = mass[i] + extra_diagonal;
+  full_diag_valid_ = false;
 }
 
-void SystemMatrix::multiply(const std::vector<char>& free, const VecX& x, VecX& y) const {
+const std::vector<SymBlock>& SystemMatrix::fullDiagonal() const {
+  if (full_diag_valid_) return full_diag_;
+  full_diag_.resize(node_scale_.size());
+  for (size_t i = 0; i < node_scale_.size(); ++i) {
+    const double m = node_scale_[i];
+    full_diag_[i] = {{m, m, m, 0.0, 0.0, 0.0}};
+  }
+  for (size_t k = 0; k < coupling_.size(); ++k) {
+    const SymBlock S = couplingBlock(static_cast<int>(k));
+    full_diag_[coupling_[k].i].addScaled(1.0, S);
+    full_diag_[coupling_[k].j].addScaled(1.0, S);
+  }
+  full_diag_valid_ = true;
+  return full_diag_;
+}
+
+void SystemMatrix::multiply(const std::vector<char>& free, const VecX& x_in, VecX& y_out) const {
   const int n = numNodes();
-  y.resize(3 * n);
-  for (int i = 0; i < n; ++i) y.segment<3>(3 * i).noalias() = diag_[i] * x.segment<3>(3 * i);
-  // Each coupling's own node pair (8 bytes) is read, not the 48-byte Spring.
-  for (size_t s = 0; s < ends_.size(); ++s) {
-    const int i = ends_[s][0], j = ends_[s][1];
-    const Vec3 t = coupling_[s] * (x.segment<3>(3 * i) - x.segment<3>(3 * j));
-    y.segment<3>(3 * i) += t;
-    y.segment<3>(3 * j) -= t;
+  y_out.resize(3 * n);
+  const double* __restrict x = x_in.data();
+  double* __restrict y = y_out.data();
+  for (int i = 0; i < n; ++i) {
+    const double m = node_scale_[i];
+    y[3 * i] = m * x[3 * i];
+    y[3 * i + 1] = m * x[3 * i + 1];
+    y[3 * i + 2] = m * x[3 * i + 2];
+  }
+  // S d = iso d + axis (u.d) u, d = x_i - x_j.
+  for (const Coupling& c : coupling_) {
+    const double* xi = x + 3 * c.i;
+    const double* xj = x + 3 * c.j;
+    const double d0 = xi[0] - xj[0], d1 = xi[1] - xj[1], d2 = xi[2] - xj[2];
+    const double a = c.axis * (c.u[0] * d0 + c.u[1] * d1 + c.u[2] * d2);
+    const double t0 = c.iso * d0 + a * c.u[0], t1 = c.iso * d1 + a * c.u[1],
+                 t2 = c.iso * d2 + a * c.u[2];
+    double* yi = y + 3 * c.i;
+    double* yj = y + 3 * c.j;
+    yi[0] += t0;
+    yi[1] += t1;
+    yi[2] += t2;
+    yj[0] -= t0;
+    yj[1] -= t1;
+    yj[2] -= t2;
   }
   for (int i = 0; i < n; ++i) {
-    if (!free[i]) y.segment<3>(3 * i).setZero();
+    if (!free[i]) y[3 * i] = y[3 * i + 1] = y[3 * i + 2] = 0.0;
   }
 }
 
@@ -119,7 +149,7 @@ void applyPreconditioner(Preconditioner kind, CgWorkspace& ws, const std::vector
   const int n = static_cast<int>(ws.inv_diag.size());
   for (int i = 0; i < n; ++i) {
     if (free[i]) {
-      z.segment<3>(3 * i).noalias() = ws.inv_diag[i] * r.segment<3>(3 * i);
+      z.segment<3>(3 * i) = ws.inv_diag[i] * Vec3(r.segment<3>(3 * i));
     } else {
       z.segment<3>(3 * i).setZero();
     }
@@ -161,7 +191,8 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
   }
   if (preconditioner == Preconditioner::BlockJacobi) {
     ws.inv_diag.resize(n);
-    for (int i = 0; i < n; ++i) ws.inv_diag[i] = A.fullDiag(i).inverse();
+    const std::vector<SymBlock>& diag = A.fullDiagonal();
+    for (int i = 0; i < n; ++i) ws.inv_diag[i] = diag[i].inverse();
   } else if (preconditioner == Preconditioner::Cholesky) {
     if (!ws.cholesky) ws.cholesky = std::make_shared<CholeskyFactor>();
     fresh_factor = !ws.cholesky->isValidFor(free) ||
@@ -175,7 +206,8 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
     }
   } else if (preconditioner == Preconditioner::Multigrid) {
     if (!ws.multigrid) ws.multigrid = std::make_shared<MultigridPreconditioner>();
-    if (!ws.multigrid->setup(A, springs, free, ws.grid_rows, ws.grid_cols)) {
+    if (!ws.multigrid->prepare(A, springs, free, ws.grid_rows, ws.grid_cols,
+                               ws.multigrid_max_solves)) {
       result.relative_residual = 1.0;
       return result;  // a singular block or coarse matrix: the caller's recovery decides
     }
@@ -207,9 +239,13 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
   // A reused factor either still solves in a few iterations or is stale (e.g.
   // Newton iterates on stiff rotating springs): then it gets only a few before
   // a fresh one, instead of the whole budget.
+  // The same for a multigrid hierarchy kept from an earlier matrix.
+  const bool reused_multigrid =
+      preconditioner == Preconditioner::Multigrid && ws.multigrid->reused();
   const int budget = preconditioner == Preconditioner::Cholesky && !fresh_factor
                          ? std::min(max_iterations, CholeskyFactor::kStaleFactorIterations)
-                         : max_iterations;
+                     : reused_multigrid ? std::min(max_iterations, ws.multigrid->staleIterations())
+                                        : max_iterations;
   int k = 0;
   while (r_norm > target && k < budget) {
     A.multiply(free, ws.p, ws.q);
@@ -235,6 +271,15 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
     more.iterations += k;
     return more;
   }
+  if (reused_multigrid && r_norm > target && k < max_iterations) {
+    // Too stale for this matrix: rebuild from it and go on from x.
+    ws.multigrid->invalidate();
+    CgResult more = conjugateGradient(A, springs, free, b, x, preconditioner, tolerance,
+                                      max_iterations - k, ws);
+    more.iterations += k;
+    return more;
+  }
+  if (preconditioner == Preconditioner::Multigrid) ws.multigrid->recordSolve(k);
   result.iterations = k;
   ws.last_iterations = k;
   result.relative_residual = r_norm / b_norm;

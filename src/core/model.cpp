@@ -40,6 +40,7 @@ void addGroup(const Scene& scene, SpringType type, const VecX& x, Model* m) {
       s.rest_length = d.norm();
       s.rest_direction = d / s.rest_length;
       s.type = type;
+      g.rest_length_sq += s.rest_length * s.rest_length;
       m->springs.push_back(s);
     };
     for (int r = 0; r < m->rows; ++r) {

@@ -10,6 +10,7 @@
 
 namespace cloth_sim {
 
+
 namespace {
 
 /// Fine lines that carry a coarse line: every other one and the last one
@@ -277,24 +278,28 @@ void MultigridPreconditioner::buildCoarseSolver() {
 }
 
 void MultigridPreconditioner::fillFinest(const SystemMatrix& A, const std::vector<Spring>& springs) {
+  // A's full node blocks are summed here from the couplings (the assembly
+  // does not keep them): each spring adds S at both free ends.
   Level& level = levels_.front();
   for (int i = 0; i < level.num_nodes; ++i) {
-    level.node_block[i] = level.free[i] ? SymBlock::from(A.fullDiag(i)) : identityBlock();
+    const double m = A.nodeScale(i);
+    level.node_block[i] = level.free[i] ? SymBlock{{m, m, m, 0.0, 0.0, 0.0}} : identityBlock();
   }
   std::fill(level.lower_block.begin(), level.lower_block.end(), SymBlock());
   const std::vector<char>& free = level.free;
   for (size_t k = 0; k < springs.size(); ++k) {
-    const SymBlock S = SymBlock::from(A.coupling(static_cast<int>(k)));
-    const int m = via_node_[k];
+    const SymBlock S = A.couplingBlock(static_cast<int>(k));
+    const int i = springs[k].i, j = springs[k].j, m = via_node_[k];
     if (m < 0) {
+      if (free[i]) level.node_block[i].addScaled(1.0, S);
+      if (free[j]) level.node_block[j].addScaled(1.0, S);
       if (spring_block_[k] >= 0) level.lower_block[spring_block_[k]].addScaled(-1.0, S);
       continue;
     }
-    // Rerouted: the node blocks (A's hold S at each free end) get 2S per
-    // half at each free end of it, the couplings -2S per half.
-    const int i = springs[k].i, j = springs[k].j;
-    if (free[i]) level.node_block[i].addScaled(1.0, S);
-    if (free[j]) level.node_block[j].addScaled(1.0, S);
+    // Rerouted: 2S on each half, so 2S at each free end, 4S in the middle,
+    // and -2S on each half's coupling.
+    if (free[i]) level.node_block[i].addScaled(2.0, S);
+    if (free[j]) level.node_block[j].addScaled(2.0, S);
     if (free[m]) level.node_block[m].addScaled(4.0, S);
     if (half_block_i_[k] >= 0) level.lower_block[half_block_i_[k]].addScaled(-2.0, S);
     if (half_block_j_[k] >= 0) level.lower_block[half_block_j_[k]].addScaled(-2.0, S);
@@ -346,15 +351,9 @@ bool MultigridPreconditioner::prepareSmoother(Level& level) const {
       level.inv_node_block[i] = SymBlock();  // keeps a fixed node's x at zero
       continue;
     }
-    // The symmetric block's inverse by cofactors (symmetric too).
-    const double* m = level.node_block[i].v;  // xx yy zz xy xz yz
-    const double c_xx = m[1] * m[2] - m[5] * m[5], c_yy = m[0] * m[2] - m[4] * m[4],
-                 c_zz = m[0] * m[1] - m[3] * m[3], c_xy = m[4] * m[5] - m[3] * m[2],
-                 c_xz = m[3] * m[5] - m[4] * m[1], c_yz = m[3] * m[4] - m[0] * m[5];
-    const double det = m[0] * c_xx + m[3] * c_xy + m[4] * c_xz;
-    const double s = 1.0 / det;
-    level.inv_node_block[i] = {{s * c_xx, s * c_yy, s * c_zz, s * c_xy, s * c_xz, s * c_yz}};
-    if (!std::isfinite(s) || !std::isfinite(s * c_xx)) return false;
+    level.inv_node_block[i] = level.node_block[i].inverse();
+    const double* inv = level.inv_node_block[i].v;
+    if (!std::isfinite(inv[0]) || !std::isfinite(inv[1]) || !std::isfinite(inv[2])) return false;
   }
   return true;
 }
@@ -375,35 +374,99 @@ bool MultigridPreconditioner::factorCoarsest() {
   return coarse_ldlt_.info() == Eigen::Success;
 }
 
+bool MultigridPreconditioner::matchesStructure(const std::vector<Spring>& springs,
+                                               const std::vector<char>& free, int rows,
+                                               int cols) const {
+  bool same = rows == rows_ && cols == cols_ && free == free_key_ &&
+              2 * springs.size() == spring_ends_.size();
+  for (size_t k = 0; same && k < springs.size(); ++k) {
+    same = springs[k].i == spring_ends_[2 * k] && springs[k].j == spring_ends_[2 * k + 1];
+  }
+  return same;
+}
+
 bool MultigridPreconditioner::setup(const SystemMatrix& A, const std::vector<Spring>& springs,
                                     const std::vector<char>& free, int rows, int cols) {
+  checkGrid(A, rows, cols);
+  if (!matchesStructure(springs, free, rows, cols)) buildStructure(springs, free, rows, cols);
+  fillFinest(A, springs);
+  return rebuildCoarse();
+}
+
+void MultigridPreconditioner::checkGrid(const SystemMatrix& A, int rows, int cols) const {
   if (rows < 1 || cols < 1 || rows * cols != A.numNodes()) {
     throw std::invalid_argument("multigrid preconditioner: grid " + std::to_string(rows) + " x " +
                                 std::to_string(cols) + " does not match the " +
                                 std::to_string(A.numNodes()) + " nodes of the system");
   }
-  bool same_springs = 2 * springs.size() == spring_ends_.size();
-  for (size_t k = 0; same_springs && k < springs.size(); ++k) {
-    same_springs = springs[k].i == spring_ends_[2 * k] && springs[k].j == spring_ends_[2 * k + 1];
-  }
-  if (rows != rows_ || cols != cols_ || !same_springs || free != free_key_) {
-    ready_ = false;
-    buildHierarchy(springs, free, rows, cols);
-    spring_ends_.resize(2 * springs.size());
-    for (size_t k = 0; k < springs.size(); ++k) {
-      spring_ends_[2 * k] = springs[k].i;
-      spring_ends_[2 * k + 1] = springs[k].j;
-    }
-  }
+}
+
+void MultigridPreconditioner::buildStructure(const std::vector<Spring>& springs,
+                                             const std::vector<char>& free, int rows, int cols) {
   ready_ = false;
-  fillFinest(A, springs);
+  buildHierarchy(springs, free, rows, cols);
+  spring_ends_.resize(2 * springs.size());
+  for (size_t k = 0; k < springs.size(); ++k) {
+    spring_ends_[2 * k] = springs[k].i;
+    spring_ends_[2 * k + 1] = springs[k].j;
+  }
+}
+
+bool MultigridPreconditioner::rebuildCoarse() {
+  ready_ = false;
+  reused_ = false;
+  rebuild_due_ = true;  // until this fill succeeds
+  ++rebuilds_;
   for (size_t l = 0; l + 1 < levels_.size(); ++l) {
     if (!prepareSmoother(levels_[l])) return false;
     galerkin(levels_[l], levels_[l + 1]);
   }
   if (!factorCoarsest()) return false;
+  const Level& finest = levels_.front();
+  built_trace_.resize(finest.num_nodes);
+  for (int i = 0; i < finest.num_nodes; ++i) built_trace_[i] = finest.node_block[i].trace();
+  solves_since_build_ = 0;
+  first_iterations_ = 0;
+  rebuild_due_ = false;
   ready_ = true;
   return true;
+}
+
+bool MultigridPreconditioner::prepare(const SystemMatrix& A, const std::vector<Spring>& springs,
+                                      const std::vector<char>& free, int rows, int cols,
+                                      int max_solves) {
+  checkGrid(A, rows, cols);
+  bool reuse = ready_ && !rebuild_due_ && solves_since_build_ < max_solves;
+  if (!matchesStructure(springs, free, rows, cols)) {
+    buildStructure(springs, free, rows, cols);
+    reuse = false;
+  }
+  // The finest level always follows the current matrix (its stiff springs
+  // turn every step, and a stale smoother costs an extra CG iteration after a
+  // single step); the coarse levels are kept unless a node block changed
+  // much (new step size or stiffness).
+  fillFinest(A, springs);
+  const Level& finest = levels_.front();
+  for (int i = 0; reuse && i < finest.num_nodes; ++i) {
+    reuse = !finest.free[i] || std::abs(finest.node_block[i].trace() - built_trace_[i]) <=
+                                   kTraceChange * std::abs(built_trace_[i]);
+  }
+  if (!reuse) return rebuildCoarse();
+  reused_ = true;
+  if (!prepareSmoother(levels_.front())) {
+    ready_ = false;
+    return false;
+  }
+  return true;
+}
+
+void MultigridPreconditioner::recordSolve(int iterations) {
+  ++solves_since_build_;
+  if (first_iterations_ == 0) {
+    first_iterations_ = iterations;  // the first solve that iterated at all
+  } else if (iterations > kIterationGrowth * first_iterations_) {
+    rebuild_due_ = true;
+  }
 }
 
 void MultigridPreconditioner::vcycle(int l) {

@@ -293,8 +293,8 @@ void readSprings(const YAML::Node& node, Scene* scene) {
 void readSolver(const YAML::Node& node, Scene::Solver* solver) {
   const Fields f(node, "solver",
                  {"method", "dt", "tolerance", "max_iterations", "preconditioner",
-                  "project_compression", "newton_tolerance", "newton_max_iterations",
-                  "max_halvings", "recovery"});
+                  "multigrid_reuse", "project_compression", "newton_tolerance",
+                  "newton_max_iterations", "max_halvings", "recovery"});
   if (f.has("method")) {
     const std::string name = readName(f.get("method"), f.path("method"));
     if (!parseMethod(name, &solver->method)) {
@@ -321,6 +321,9 @@ void readSolver(const YAML::Node& node, Scene::Solver* solver) {
       fail(f.path("preconditioner"), "unknown preconditioner '" + name +
                                          "' (expected none, block_jacobi, cholesky, multigrid)");
     }
+  }
+  if (f.has("multigrid_reuse")) {
+    solver->multigrid_reuse = readInt(f.get("multigrid_reuse"), f.path("multigrid_reuse"));
   }
   if (f.has("project_compression")) {
     solver->project_compression =
@@ -672,6 +675,7 @@ void validateSolver(const Scene::Solver& solver) {
   requirePositive(solver.dt, "solver.dt");
   requireFraction(solver.tolerance, "solver.tolerance");
   requireAtLeast(solver.max_iterations, 1, "solver.max_iterations");
+  requireAtLeast(solver.multigrid_reuse, 1, "solver.multigrid_reuse");
   requireFraction(solver.newton_tolerance, "solver.newton_tolerance");
   requireAtLeast(solver.newton_max_iterations, 1, "solver.newton_max_iterations");
   requireAtLeast(solver.max_halvings, 0, "solver.max_halvings");

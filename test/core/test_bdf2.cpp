@@ -46,22 +46,21 @@ TEST(Bdf2, OneNewtonIterationStaysCloseToConverged) {
   EXPECT_LT(linearizedDeviation(0.0025), 1e-4);
 }
 
-// The benchmark's hang32 cloth at a step too large for one iteration to be
-// accurate (dt 1/60): it must stay a cloth. Starting every step from the
-// extrapolated velocity alone, this run blew up (strain > 10 within 2 s):
-// extrapolation amplified what the solve left of the stiff modes.
-TEST(Bdf2, OneIterationAtLargeStepsStaysBounded) {
-  Scene s = loadScene(std::string(CLOTH_SIM_SOURCE_DIR) + "/config/scenes/hang32.yaml");
-  s.solver.dt = 1.0 / 60.0;
-  s.solver.preconditioner = Preconditioner::BlockJacobi;
-  s.solver.tolerance = 1e-3;
+// The benchmark's hang64 cloth, one Newton iteration, CG to 1e-1, dt 1/160:
+// the extrapolated first iterate alone amplified what the loose solve left of
+// the stiff modes, and this run blew up (strain 35 within 2 s; normal: 0.036).
+// Recovery is off, so nothing else can catch it.
+TEST(Bdf2, OneIterationFirstIterateKeepsLooseSolvesBounded) {
+  Scene s = loadScene(std::string(CLOTH_SIM_SOURCE_DIR) + "/config/scenes/hang64.yaml");
+  s.solver.dt = 1.0 / 160.0;
+  s.solver.tolerance = 1e-1;
   s.solver.newton_max_iterations = 1;
   s.solver.recovery = false;
   Simulation sim(s);
-  for (int n = 0; n < 120; ++n) {
+  for (int n = 0; n < 320; ++n) {
     const StepStats stats = sim.step();
     ASSERT_TRUE(stats.ok) << "step " << n << ": " << stats.failure;
-    ASSERT_LT(sim.maxStrain(), 0.1) << "step " << n;
+    ASSERT_LT(sim.maxStrain(), 0.05) << "step " << n;
   }
 }
 

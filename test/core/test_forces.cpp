@@ -34,5 +34,31 @@ TEST(Forces, MatchPerSpringReferenceSum) {
   }
 }
 
+// The per-group sums (measureEnergy's elastic energy, springForceScale's
+// cached rest lengths) against per-spring sums, also after a stiffness change.
+TEST(Forces, GroupSumsMatchPerSpringSums) {
+  Scene s = test::hangingCloth(7);
+  s.springs[static_cast<int>(SpringType::Bend)].enabled = true;
+  s.springs[static_cast<int>(SpringType::Bend)].stiffness = 3.0;
+  Model m = buildModel(s);
+  VecX x, v;
+  test::perturbedState(m, 5, &x, &v);
+  for (double stretch_k : {m.groups[0].stiffness, 7.5e3}) {
+    m.groups[static_cast<int>(SpringType::Stretch)].stiffness = stretch_k;
+    double elastic = 0.0, strain = 0.0, scale_sq = 0.0;
+    for (const Spring& sp : m.springs) {
+      const SpringParams p = springParams(m, sp);
+      elastic += springEnergy(x.segment<3>(3 * sp.i), x.segment<3>(3 * sp.j), p);
+      strain = std::max(strain, (x.segment<3>(3 * sp.j) - x.segment<3>(3 * sp.i)).norm() /
+                                    sp.rest_length - 1.0);
+      scale_sq += (p.stiffness * sp.rest_length) * (p.stiffness * sp.rest_length);
+    }
+    const EnergyParts e = measureEnergy(m, x, v);
+    EXPECT_NEAR(e.elastic, elastic, 1e-12 * elastic);
+    EXPECT_EQ(e.max_strain, strain);
+    EXPECT_NEAR(springForceScale(m), std::sqrt(scale_sq), 1e-12 * std::sqrt(scale_sq));
+  }
+}
+
 }  // namespace
 }  // namespace cloth_sim

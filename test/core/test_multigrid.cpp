@@ -21,6 +21,7 @@ struct HangingSystem {
   SystemMatrix A;
   std::vector<char> free;
   VecX b;
+  VecX x, v;  ///< the state A was assembled at
 };
 
 HangingSystem hangingSystem(int rows, int cols, const std::vector<int>& pins, double h = 1.0 / 240,
@@ -41,6 +42,8 @@ HangingSystem hangingSystem(int rows, int cols, const std::vector<int>& pins, do
   Simulation sim(s.scene);
   for (int k = 0; k < warm_steps; ++k) EXPECT_TRUE(sim.step().ok);
   s.model = sim.model();
+  s.x = sim.positions();
+  s.v = sim.velocities();
   s.A.resize(s.model.numNodes(), static_cast<int>(s.model.springs.size()));
   VecX f;
   assembleSystem(s.model, sim.positions(), sim.velocities(), h, h * h, true, s.A, f);
@@ -315,6 +318,145 @@ TEST(CholeskyReuse, StaleFactorIsReplacedAfterAFewIterations) {
   EXPECT_EQ(ws.factorizations, 2);
   EXPECT_LE(r.iterations, CholeskyFactor::kStaleFactorIterations + 5);
   EXPECT_LT(relativeResidual(far, x), 1e-9);
+}
+
+
+// Reuse across solves: the coarse levels of an earlier matrix serve the next
+// solves (the finest level always follows the current matrix).
+
+double symmetryGap(MultigridPreconditioner& mg, const HangingSystem& s, unsigned seed) {
+  const int dim = static_cast<int>(s.b.size());
+  VecX r1 = randomVector(dim, seed), r2 = randomVector(dim, seed + 50), z1, z2;
+  for (int i = 0; i < s.model.numNodes(); ++i) {
+    if (!s.free[i]) r1.segment<3>(3 * i).setZero(), r2.segment<3>(3 * i).setZero();
+  }
+  mg.apply(r1, z1);
+  mg.apply(r2, z2);
+  EXPECT_GT(r1.dot(z1), 0.0);
+  EXPECT_GT(r2.dot(z2), 0.0);
+  return std::abs(r1.dot(z2) - r2.dot(z1)) / (r1.norm() * z2.norm());
+}
+
+TEST(MultigridReuse, ReusedCoarseLevelsSolveToTheSameAnswer) {
+  // Three consecutive steps' matrices of the swinging cloth, then one 20 steps on.
+  const HangingSystem first = hangingSystem(24, 17, {0, 16}, 1.0 / 240, 40);
+  const HangingSystem second = hangingSystem(24, 17, {0, 16}, 1.0 / 240, 41);
+  const HangingSystem third = hangingSystem(24, 17, {0, 16}, 1.0 / 240, 42);
+  const HangingSystem later = hangingSystem(24, 17, {0, 16}, 1.0 / 240, 60);
+  CgWorkspace ws;
+  ws.grid_rows = 24;
+  ws.grid_cols = 17;
+  ws.multigrid_max_solves = 4;
+  int first_iterations = 0;
+  for (const HangingSystem* s : {&first, &second, &third, &later}) {
+    VecX x = VecX::Zero(s->b.size());
+    const CgResult r = conjugateGradient(s->A, s->model.springs, s->free, s->b, x,
+                                         Preconditioner::Multigrid, 1e-11, 500, ws);
+    ASSERT_TRUE(r.converged);
+    EXPECT_LT(relativeResidual(*s, x), 2e-11);
+    const Solve fresh = solve(*s, Preconditioner::Multigrid, 1e-11);
+    EXPECT_LT((x - fresh.x).norm(), 1e-9 * fresh.x.norm());
+    if (s == &first) first_iterations = r.iterations;
+    if (s != &later) {
+      EXPECT_EQ(ws.multigrid->reused(), s != &first);
+      EXPECT_EQ(ws.multigrid->rebuilds(), 1);  // one full fill, from `first`
+      EXPECT_LE(r.iterations, fresh.result.iterations + 2);
+      // Reused coarse levels under a fresh finest level: still symmetric and positive.
+      EXPECT_LT(symmetryGap(*ws.multigrid, *s, 11), 1e-12);
+    } else {
+      // 20 steps on, the coarse levels are too stale: CG replaces them
+      // mid-solve after their allowance and goes on from where it was.
+      EXPECT_EQ(ws.multigrid->rebuilds(), 2) << "no longer stale: pick a later state";
+      EXPECT_FALSE(ws.multigrid->reused());
+      EXPECT_LE(r.iterations, 2 * first_iterations + fresh.result.iterations + 2);
+    }
+  }
+}
+
+TEST(MultigridReuse, RebuiltOnNewPinsNewStepSizeSlowSolvesAndAfterMaxSolves) {
+  const HangingSystem s = hangingSystem(20, 20, {0, 19}, 1.0 / 240, 30);
+  HangingSystem pinned = s;
+  pinned.free[10 * 20 + 10] = 0;
+  pinned.b.segment<3>(3 * (10 * 20 + 10)).setZero();
+  // Same state, twice the step: the stiffness part of every diagonal block grows 4x.
+  HangingSystem wide_step = s;
+  VecX f;
+  const double h = 1.0 / 120;
+  assembleSystem(s.model, s.x, s.v, h, h * h, true, wide_step.A, f);
+
+  CgWorkspace ws;
+  ws.grid_rows = ws.grid_cols = 20;
+  ws.multigrid_max_solves = 3;
+  int expected_rebuilds = 0;
+  auto run = [&](const HangingSystem& sys, bool rebuilt) {
+    VecX x = VecX::Zero(sys.b.size());
+    const CgResult r = conjugateGradient(sys.A, sys.model.springs, sys.free, sys.b, x,
+                                         Preconditioner::Multigrid, 1e-10, 500, ws);
+    EXPECT_TRUE(r.converged);
+    EXPECT_LT(relativeResidual(sys, x), 1e-9);
+    if (rebuilt) ++expected_rebuilds;
+    EXPECT_EQ(ws.multigrid->reused(), !rebuilt);
+    EXPECT_EQ(ws.multigrid->rebuilds(), expected_rebuilds);
+    return x;
+  };
+  run(s, true);
+  run(s, false);
+  const VecX x_pinned = run(pinned, true);  // new pins
+  EXPECT_EQ(x_pinned.segment<3>(3 * 210), Vec3::Zero());
+  run(pinned, false);
+  run(s, true);  // pins back
+  run(wide_step, true);  // another step size
+  run(wide_step, false);
+  run(wide_step, false);
+  run(wide_step, true);  // max_solves (3) served
+
+  // A solve that took more than kIterationGrowth times the first one's
+  // iterations makes the next prepare rebuild.
+  MultigridPreconditioner mg;
+  ASSERT_TRUE(mg.prepare(s.A, s.model.springs, s.free, 20, 20, 100));
+  EXPECT_EQ(mg.rebuilds(), 1);
+  mg.recordSolve(4);
+  ASSERT_TRUE(mg.prepare(s.A, s.model.springs, s.free, 20, 20, 100));
+  EXPECT_TRUE(mg.reused());
+  mg.recordSolve(6);  // 1.5x: still fine
+  ASSERT_TRUE(mg.prepare(s.A, s.model.springs, s.free, 20, 20, 100));
+  EXPECT_TRUE(mg.reused());
+  mg.recordSolve(7);
+  ASSERT_TRUE(mg.prepare(s.A, s.model.springs, s.free, 20, 20, 100));
+  EXPECT_FALSE(mg.reused());
+  EXPECT_EQ(mg.rebuilds(), 2);
+  // And max_solves = 1 rebuilds every time.
+  mg.recordSolve(4);
+  ASSERT_TRUE(mg.prepare(s.A, s.model.springs, s.free, 20, 20, 1));
+  EXPECT_EQ(mg.rebuilds(), 3);
+}
+
+// The stepper takes the reuse limit from the scene; 1 turns reuse off, and the
+// trajectory is the same either way (CG's product uses the current matrix).
+TEST(MultigridReuse, SceneSettingChangesCostNotAnswers) {
+  Scene s = test::hangingCloth(16, Method::Bdf2);
+  s.pins = {0, 15};
+  s.solver.dt = 1.0 / 200;
+  s.solver.tolerance = 1e-10;
+  s.solver.preconditioner = Preconditioner::Multigrid;
+  s.solver.newton_max_iterations = 1;
+  s.solver.recovery = false;
+  EXPECT_EQ(s.solver.multigrid_reuse, 4);  // the default
+  Scene off = s;
+  off.solver.multigrid_reuse = 1;
+  Simulation a(s), b(off);
+  for (int n = 0; n < 30; ++n) {
+    ASSERT_TRUE(a.step().ok);
+    ASSERT_TRUE(b.step().ok);
+  }
+  EXPECT_LT((a.positions() - b.positions()).norm(), 1e-9 * b.positions().norm());
+  EXPECT_EQ(parseScene("cloth: {rows: 4, cols: 4}\nsolver: {multigrid_reuse: 7}\n").solver.multigrid_reuse, 7);
+  try {
+    parseScene("cloth: {rows: 4, cols: 4}\nsolver: {multigrid_reuse: 0}\n");
+    FAIL() << "expected a SceneError";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("solver.multigrid_reuse"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace
