@@ -24,33 +24,14 @@
 #include <string>
 #include <vector>
 
+#include "cloth_sim/json_text.hpp"
 #include "cloth_sim/simulation.hpp"
 
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-std::string jsonString(const std::string& s) {
-  std::string out = "\"";
-  for (char c : s) {
-    if (c == '"' || c == '\\') {
-      out += '\\';
-      out += c;
-    } else if (static_cast<unsigned char>(c) < 0x20) {
-      out += ' ';
-    } else {
-      out += c;
-    }
-  }
-  return out + "\"";
-}
-
-std::string jsonNumber(double x) {
-  if (!std::isfinite(x)) return "null";
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.6g", x);
-  return buf;
-}
+using cloth_sim::jsonNumber;
+using cloth_sim::jsonString;
 
 /// Short reason from a StepStats failure text.
 std::string category(const std::string& failure) {
@@ -189,10 +170,11 @@ int main(int argc, char** argv) {
       jsonString(scene_path).c_str(), jsonString(cloth_sim::toString(scene.solver.method)).c_str(),
       jsonNumber(sim.group(cloth_sim::SpringType::Stretch).present
                      ? scene.springs[static_cast<int>(cloth_sim::SpringType::Stretch)].stiffness
-                     : 0.0)
+                     : 0.0,
+                 6)
           .c_str(),
-      jsonNumber(scene.solver.dt).c_str(), jsonString(status).c_str(), jsonString(reason).c_str(),
-      max_halvings, rejected, linearized, done, substeps, jsonNumber(sim.time()).c_str(),
-      jsonNumber(wall).c_str(), jsonNumber(max_strain).c_str());
+      jsonNumber(scene.solver.dt, 6).c_str(), jsonString(status).c_str(), jsonString(reason).c_str(),
+      max_halvings, rejected, linearized, done, substeps, jsonNumber(sim.time(), 6).c_str(),
+      jsonNumber(wall, 6).c_str(), jsonNumber(max_strain, 6).c_str());
   return 0;
 }

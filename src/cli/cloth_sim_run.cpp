@@ -14,10 +14,14 @@
 #include <string>
 #include <vector>
 
+#include "cloth_sim/json_text.hpp"
 #include "cloth_sim/scene.hpp"
 #include "cloth_sim/simulation.hpp"
 
 namespace {
+
+using cloth_sim::jsonNumber;
+using cloth_sim::jsonString;
 
 constexpr int kExitOk = 0;
 constexpr int kExitBadInput = 2;
@@ -182,35 +186,6 @@ bool writeState(const std::string& path, const cloth_sim::Simulation& sim) {
     std::fprintf(f, "%.17g %.17g %.17g %.17g %.17g %.17g\n", x[3 * i], x[3 * i + 1],
                  x[3 * i + 2], v[3 * i], v[3 * i + 1], v[3 * i + 2]);
   return std::fclose(f) == 0;
-}
-
-/// JSON has no NaN or infinity: those become null.
-std::string jsonNumber(double value) {
-  if (!std::isfinite(value)) return "null";
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.17g", value);
-  return buf;
-}
-
-std::string jsonString(const std::string& text) {
-  std::string out = "\"";
-  for (const char c : text) {
-    switch (c) {
-      case '"': out += "\\\""; break;
-      case '\\': out += "\\\\"; break;
-      case '\n': out += "\\n"; break;
-      case '\t': out += "\\t"; break;
-      default:
-        if (static_cast<unsigned char>(c) < 0x20) {
-          char buf[8];
-          std::snprintf(buf, sizeof buf, "\\u%04x", c);
-          out += buf;
-        } else {
-          out += c;
-        }
-    }
-  }
-  return out + "\"";
 }
 
 /// Accumulated over the run.
