@@ -46,14 +46,11 @@ class Stepper {
   /// changed) the trapezoidal rule, so the start is second order too (a
   /// backward-Euler start adds an O(h^2) error that dominates settling scenes).
   StepStats bdf2(const Model& model, double h, const History& history, VecX& x, VecX& v);
-  /// Solves x1 = ax + beta h v1, M (v1 - av) = beta h f(x1, v1) by Newton with
-  /// a backtracking line search: backward Euler (beta = 1, a = (x0, v0)), BDF2
-  /// (beta = 2/3), the trapezoidal rule (beta = 1/2). `guess` (nullptr: av) is
-  /// the first iterate on free nodes: with one Newton iteration its error
-  /// scales the step's solver error.
+  /// Solves x1 = ax + beta h v1, M (v1 - av) = beta h f(x1, v1) by Newton,
+  /// from v1 = av, with a backtracking line search: backward Euler (beta = 1,
+  /// a = (x0, v0)), BDF2 (beta = 2/3), the trapezoidal rule (beta = 1/2).
   StepStats newtonSolve(const Model& model, double h, double beta, const VecX& ax,
-                        const VecX& av, int max_iterations, VecX& x, VecX& v,
-                        const VecX* guess = nullptr);
+                        const VecX& av, int max_iterations, VecX& x, VecX& v);
   /// Newton's merit function: 1/2 |v1 - av|_M^2 + U(x1) + b h R(v1), with U
   /// elastic + gravity potential and R the Rayleigh dissipation (drag, spring
   /// damping with the spring axis held): its gradient in v1 is g, but for the
@@ -78,7 +75,6 @@ class Stepper {
   CgWorkspace cg_;
   VecX f_, rhs_, dv_, dfdx_v_, g_, x_trial_, v_trial_, g_trial_, delta_, delta_first_, ax_, av_, pinned_dv_;
   VecX x_best_, v_best_, g_best_;  ///< the line search's best trial
-  VecX guess_;                      ///< bdf2's extrapolated first iterate
 };
 
 }  // namespace cloth_sim

@@ -72,9 +72,7 @@ StepStats Stepper::bdf2(const Model& model, double h, const History& history, Ve
   if (history.x_prev && history.v_prev && history.h_prev == h) {
     ax_ = (4.0 * x - *history.x_prev) / 3.0;
     av_ = (4.0 * v - *history.v_prev) / 3.0;
-    // First iterate: v extrapolated linearly, O(h^2) from the answer (av is O(h)).
-    guess_ = 2.0 * v - *history.v_prev;
-    return newtonSolve(model, h, 2.0 / 3.0, ax_, av_, max_it, x, v, &guess_);
+    return newtonSolve(model, h, 2.0 / 3.0, ax_, av_, max_it, x, v);
   }
   // Trapezoidal rule: x1 = x + h/2 (v + v1), M v1 = M v + h/2 (f(x, v) + f(x1, v1)).
   computeForces(model, x, v, f_);
@@ -144,43 +142,24 @@ double Stepper::residualFromForces(const Model& model, double bh, const VecX& av
 }
 
 StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const VecX& ax_in,
-                               const VecX& av_in, int max_iterations, VecX& x, VecX& v,
-                               const VecX* guess) {
+                               const VecX& av_in, int max_iterations, VecX& x, VecX& v) {
   StepStats stats;
   const double bh = beta * h;
   // ax/av may alias x/v: keep copies, x and v are the outputs.
   if (&ax_in != &ax_) ax_ = ax_in;
   if (&av_in != &av_) av_ = av_in;
-  // Pinned nodes move to their targets: v = (target - ax) / (beta h).
-  auto pinVelocities = [&](VecX& v_start) {
-    for (size_t k = 0; k < pins_->nodes.size(); ++k) {
-      const int p = pins_->nodes[k];
-      v_start.segment<3>(3 * p) = (pins_->targets[k] - ax_.segment<3>(3 * p)) / bh;
-    }
-  };
   VecX& v1 = v;
-  v1 = guess ? *guess : av_;
-  pinVelocities(v1);
+  v1 = av_;
+  for (size_t k = 0; k < pins_->nodes.size(); ++k) {  // pins end on their targets
+    const int p = pins_->nodes[k];
+    v1.segment<3>(3 * p) = (pins_->targets[k] - ax_.segment<3>(3 * p)) / bh;
+  }
   // Every iterate's forces come from one evaluation: the assembly gives f at
   // the start, the line search's accepted trial the g of the next iterate.
   auto t0 = Clock::now();
   x = ax_ + bh * v1;
   assembleSystem(model, x, v1, bh, bh * bh, settings_.project_compression, A_, f_);
-  double g0 = residualFromForces(model, bh, av_, v1, f_, g_);
-  if (guess) {
-    // The extrapolated guess is usually far closer than av; but at a step too
-    // large for the motion, extrapolating what a loose solve left of the stiff
-    // modes amplifies it (the one-iteration cloth then blows up). Start from
-    // whichever has the smaller residual: one more force evaluation.
-    v_trial_ = av_;
-    pinVelocities(v_trial_);
-    if (residual(model, bh, ax_, av_, v_trial_, x_trial_, g_trial_) < g0) {
-      v1 = v_trial_;
-      x = ax_ + bh * v1;
-      assembleSystem(model, x, v1, bh, bh * bh, settings_.project_compression, A_, f_);
-      g0 = residualFromForces(model, bh, av_, v1, f_, g_);
-    }
-  }
+  const double g0 = residualFromForces(model, bh, av_, v1, f_, g_);
   double g_norm = g0;
   stats.assembly_s += secondsSince(t0);
   // ||g|| is only known to the round-off of its terms (M v, and b h f with an
