@@ -4,30 +4,13 @@
 #include <cstdio>
 #include <regex>
 
+#include "cloth_sim/json_text.hpp"
+
 namespace cloth_sim_ros {
 namespace {
 
-std::string quote(const std::string& text) {
-  std::string out = "\"";
-  for (const char c : text) {
-    switch (c) {
-      case '"': out += "\\\""; break;
-      case '\\': out += "\\\\"; break;
-      case '\n': out += "\\n"; break;
-      case '\t': out += "\\t"; break;
-      case '\r': out += "\\r"; break;
-      default:
-        if (static_cast<unsigned char>(c) < 0x20) {
-          char buf[8];
-          std::snprintf(buf, sizeof(buf), "\\x%02x", static_cast<unsigned char>(c));
-          out += buf;
-        } else {
-          out += c;
-        }
-    }
-  }
-  return out + "\"";
-}
+// A JSON string is a YAML double-quoted scalar (YAML reads \uXXXX escapes too).
+std::string quote(const std::string& text) { return cloth_sim::jsonString(text); }
 
 std::string number(double value) {
   if (std::isnan(value)) return ".nan";
