@@ -236,16 +236,17 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
   applyPreconditioner(preconditioner, ws, free, ws.r, ws.z);
   ws.p = ws.z;
   double rz = ws.r.dot(ws.z);
-  // A reused factor either still solves in a few iterations or is stale (e.g.
-  // Newton iterates on stiff rotating springs): then it gets only a few before
-  // a fresh one, instead of the whole budget.
-  // The same for a multigrid hierarchy kept from an earlier matrix.
+  // A preconditioner kept from an earlier matrix (a reused Cholesky factor,
+  // multigrid coarse levels) either still solves in a few iterations or is
+  // stale (e.g. Newton iterates on stiff rotating springs): then it gets only
+  // a few before a fresh one, instead of the whole budget.
+  const bool reused_factor = preconditioner == Preconditioner::Cholesky && !fresh_factor;
   const bool reused_multigrid =
       preconditioner == Preconditioner::Multigrid && ws.multigrid->reused();
-  const int budget = preconditioner == Preconditioner::Cholesky && !fresh_factor
-                         ? std::min(max_iterations, CholeskyFactor::kStaleFactorIterations)
-                     : reused_multigrid ? std::min(max_iterations, ws.multigrid->staleIterations())
-                                        : max_iterations;
+  const int budget =
+      reused_factor      ? std::min(max_iterations, CholeskyFactor::kStaleFactorIterations)
+      : reused_multigrid ? std::min(max_iterations, ws.multigrid->staleIterations())
+                         : max_iterations;
   int k = 0;
   while (r_norm > target && k < budget) {
     A.multiply(free, ws.p, ws.q);
@@ -262,18 +263,10 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
     ws.p = ws.z + (rz_new / rz) * ws.p;
     rz = rz_new;
   }
-  if (preconditioner == Preconditioner::Cholesky && !fresh_factor && r_norm > target &&
-      k < max_iterations) {
-    // The reused factor was too stale for this matrix: refactor and go on from x.
-    ws.cholesky->invalidate();
-    CgResult more = conjugateGradient(A, springs, free, b, x, preconditioner, tolerance,
-                                      max_iterations - k, ws);
-    more.iterations += k;
-    return more;
-  }
-  if (reused_multigrid && r_norm > target && k < max_iterations) {
+  if ((reused_factor || reused_multigrid) && r_norm > target && k < max_iterations) {
     // Too stale for this matrix: rebuild from it and go on from x.
-    ws.multigrid->invalidate();
+    if (reused_factor) ws.cholesky->invalidate();
+    if (reused_multigrid) ws.multigrid->invalidate();
     CgResult more = conjugateGradient(A, springs, free, b, x, preconditioner, tolerance,
                                       max_iterations - k, ws);
     more.iterations += k;
