@@ -131,7 +131,7 @@ class MultigridPreconditioner {
   bool reused() const { return reused_; }
   /// CG iterations reused coarse levels get before they are replaced mid-solve.
   int staleIterations() const { return std::max(2 * first_iterations_, first_iterations_ + 4); }
-  /// Count of full refills (setup calls), for tests and the benchmark.
+  /// Count of coarse-level rebuilds, for tests and the benchmark.
   int rebuilds() const { return rebuilds_; }
 
   /// z = B r, B the V-cycle (SPD on the free DOFs); pinned entries of z are

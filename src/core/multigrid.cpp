@@ -387,10 +387,8 @@ bool MultigridPreconditioner::matchesStructure(const std::vector<Spring>& spring
 
 bool MultigridPreconditioner::setup(const SystemMatrix& A, const std::vector<Spring>& springs,
                                     const std::vector<char>& free, int rows, int cols) {
-  checkGrid(A, rows, cols);
-  if (!matchesStructure(springs, free, rows, cols)) buildStructure(springs, free, rows, cols);
-  fillFinest(A, springs);
-  return rebuildCoarse();
+  invalidate();
+  return prepare(A, springs, free, rows, cols, 1);
 }
 
 void MultigridPreconditioner::checkGrid(const SystemMatrix& A, int rows, int cols) const {
