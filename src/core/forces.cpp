@@ -44,11 +44,8 @@ void computeForces(const Model& model, const VecX& x, const VecX& v, VecX& f) {
       const Vec3 d = x.segment<3>(3 * s.j) - x.segment<3>(3 * s.i);
       const double l = d.norm();
       const Vec3 u = springDirection(d, l, s.rest_length, s.rest_direction);
-      Vec3 fi = stiffness * (l - s.rest_length) * u;
-      if (damping != 0.0) {
-        const Vec3 dv = v.segment<3>(3 * s.j) - v.segment<3>(3 * s.i);
-        fi += along ? Vec3(damping * dv.dot(u) * u) : Vec3(damping * dv);
-      }
+      const Vec3 fi = springForceOnI(stiffness, damping, along, l, s.rest_length, u,
+                                     v.segment<3>(3 * s.j) - v.segment<3>(3 * s.i));
       f.segment<3>(3 * s.i) += fi;
       f.segment<3>(3 * s.j) -= fi;
     }
@@ -83,11 +80,8 @@ void assembleSystem(const Model& model, const VecX& x, const VecX& v, double a, 
       double t = degenerate ? 0.0 : 1.0 - s.rest_length / l;
       if (project_compression) t = std::max(t, 0.0);
       const double k_iso = stiffness * t, k_axis = stiffness - k_iso;
-      Vec3 fi = stiffness * (l - s.rest_length) * u;
-      if (damping != 0.0) {
-        const Vec3 dv = v.segment<3>(3 * s.j) - v.segment<3>(3 * s.i);
-        fi += along ? Vec3((damping * dv.dot(u)) * u) : Vec3(damping * dv);
-      }
+      const Vec3 fi = springForceOnI(stiffness, damping, along, l, s.rest_length, u,
+                                     v.segment<3>(3 * s.j) - v.segment<3>(3 * s.i));
       A.setCoupling(k, s.i, s.j, b * k_iso + damping_iso, b * k_axis + damping_axis, u);
       f.segment<3>(3 * s.i) += fi;
       f.segment<3>(3 * s.j) -= fi;

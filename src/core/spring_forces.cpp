@@ -18,13 +18,8 @@ Vec3 springForce(const Vec3& xi, const Vec3& xj, const Vec3& vi, const Vec3& vj,
   Vec3 u;
   double l;
   springAxis(xi, xj, p, &u, &l);
-  Vec3 f = p.stiffness * (l - p.rest_length) * u;
-  if (p.damping != 0.0) {
-    const Vec3 dv = vj - vi;
-    f += p.damping_model == DampingModel::AlongSpring ? Vec3(p.damping * dv.dot(u) * u)
-                                                      : Vec3(p.damping * dv);
-  }
-  return f;
+  return springForceOnI(p.stiffness, p.damping, p.damping_model == DampingModel::AlongSpring, l,
+                        p.rest_length, u, vj - vi);
 }
 
 double springEnergy(const Vec3& xi, const Vec3& xj, const SpringParams& p) {
