@@ -17,6 +17,7 @@
 #include <memory>
 #include <vector>
 
+#include "cloth_sim/constraint_filter.hpp"
 #include "cloth_sim/model.hpp"
 #include "cloth_sim/multigrid.hpp"
 #include "cloth_sim/types.hpp"
@@ -53,8 +54,11 @@ class SystemMatrix {
              a * c.u[0] * c.u[1], a * c.u[0] * c.u[2], a * c.u[1] * c.u[2]}};
   }
 
-  /// y = A x, restricted to free nodes (pinned rows and columns act as zero).
-  void multiply(const std::vector<char>& free, const VecX& x, VecX& y) const;
+  /// y = S A x, S the filter (eliminated rows zero, projected rows projected;
+  /// x is taken as given, so pass a filtered x for S A S x).
+  void multiply(const ConstraintFilter& filter, const VecX& x, VecX& y) const;
+  /// y = A x, unfiltered (contact reactions).
+  void multiplyAll(const VecX& x, VecX& y) const;
   /// Full diagonal block of node i including its springs' couplings (summed
   /// on first use after the couplings changed: only block Jacobi and Cholesky
   /// need them).
@@ -123,12 +127,13 @@ struct CgWorkspace {
   int factorizations = 0;  ///< count, for the benchmark
 };
 
-/// Preconditioned conjugate gradient on the free DOFs. `x` is the warm start
-/// and the answer; pinned entries of x are set to zero. Stops when
-/// ||r|| <= tolerance * ||b|| (b restricted to free DOFs) or after
-/// max_iterations.
+/// Preconditioned conjugate gradient on S A S y = S b, S the constraint
+/// filter (Baraff & Witkin's modified PCG). `x` is the warm start and the
+/// answer, filtered on entry (eliminated entries zero). Stops when
+/// ||r|| <= tolerance * ||S b|| or after max_iterations. The preconditioner
+/// is built on the filter's free mask and its output filtered: S B S.
 CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& springs,
-                           const std::vector<char>& free, const VecX& b, VecX& x,
+                           const ConstraintFilter& filter, const VecX& b, VecX& x,
                            Preconditioner preconditioner, double tolerance,
                            int max_iterations, CgWorkspace& ws);
 

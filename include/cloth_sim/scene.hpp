@@ -25,9 +25,26 @@ struct SpringGroupParams {
   double damping = 0.0;    ///< N*s/m, >= 0
 };
 
+/// A rigid shape the cloth's nodes cannot enter (docs/scene.md, "colliders").
+struct ColliderParams {
+  enum class Type { Plane, Sphere, Box, Capsule };
+  std::string name;                   ///< unique; empty: "colliders[k]"
+  Type type = Type::Plane;
+  Vec3 point = Vec3::Zero();          ///< plane: a point on it
+  Vec3 normal = Vec3::UnitZ();        ///< plane: outward normal (normalised when read)
+  Vec3 center = Vec3::Zero();         ///< sphere, box
+  double radius = 0.0;                ///< sphere, capsule: > 0
+  Vec3 half_extents = Vec3::Zero();   ///< box: > 0 each
+  Vec3 rpy = Vec3::Zero();            ///< box: roll, pitch, yaw (rad, REP 103)
+  Vec3 a = Vec3::Zero(), b = Vec3::Zero();  ///< capsule: segment ends
+  std::optional<double> friction;     ///< Coulomb mu >= 0; absent: contact.friction
+  std::string frame;                  ///< node only: pose relative to this tf frame
+};
+const char* toString(ColliderParams::Type type);
+
 /// An action applied between steps at simulated time `time`.
 struct SceneEvent {
-  enum class Kind { SetStiffness, MovePin, Pin, Release };
+  enum class Kind { SetStiffness, MovePin, Pin, Release, MoveCollider };
   double time = 0.0;
   Kind kind = Kind::SetStiffness;
   // set_stiffness
@@ -43,6 +60,8 @@ struct SceneEvent {
   // pin / release
   std::vector<int> indices;
   bool release_all = false;
+  // move_collider (position, velocity, duration as move_pin)
+  std::string collider;
 };
 
 struct Scene {
@@ -77,7 +96,15 @@ struct Scene {
     bool recovery = true;
   } solver;
 
+  /// Contact defaults for every collider.
+  struct Contact {
+    double thickness = 0.002;  ///< m, >= 0: nodes keep this far from every surface
+    double friction = 0.3;     ///< Coulomb mu >= 0 (static = kinetic)
+  } contact;
+  std::vector<ColliderParams> colliders;  ///< none: no contact code runs
+
   struct Initial {
+    Vec3 velocity = Vec3::Zero();  ///< uniform initial velocity, m/s
     double stretch = 1.0;  ///< scale about the centroid at t = 0
     double scatter = 0.0;  ///< random offset within a cube of this size, m
     unsigned seed = 0;

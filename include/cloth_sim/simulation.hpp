@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "cloth_sim/collider.hpp"
 #include "cloth_sim/forces.hpp"
 #include "cloth_sim/model.hpp"
 #include "cloth_sim/scene.hpp"
@@ -16,6 +17,13 @@
 #include "cloth_sim/types.hpp"
 
 namespace cloth_sim {
+
+/// Where a collider is and how it drifts (move_collider, like a pin target).
+struct ColliderState {
+  Pose pose;                     ///< now
+  Vec3 velocity = Vec3::Zero();  ///< drifts at this velocity ...
+  double velocity_until = 0.0;   ///< ... until this simulated time
+};
 
 /// Where a pinned node must be at the end of each step.
 struct PinTarget {
@@ -58,7 +66,17 @@ class Simulation {
   /// spring_type: "stretch", "shear", "bend" or "all"; stiffness > 0 finite;
   /// damping >= 0 finite, or exactly -1 to keep the current damping.
   Status setStiffness(const std::string& spring_type, double stiffness, double damping = -1.0);
-  /// Back to the initial state, pins and stiffness of the scene.
+  /// Moves a collider by name: its reference point (plane point, sphere or
+  /// box center, capsule end a) jumps to `position`, then drifts at
+  /// `velocity` for `duration` s. The drift enters friction.
+  Status moveCollider(const std::string& name, const Vec3& position,
+                      const Vec3& velocity = Vec3::Zero(), double duration = 0.0);
+  /// Places collider `index` at a world pose (the node's tf-attached
+  /// colliders), moving at `velocity` until the next call (nonzero: the
+  /// steps until then sweep that motion, and friction sees it). The jump to
+  /// `pose` itself is not swept: a node it lands inside is pushed out.
+  Status setColliderPose(int index, const Pose& pose, const Vec3& velocity = Vec3::Zero());
+  /// Back to the initial state, pins, colliders and stiffness of the scene.
   void reset();
 
   bool isPinned(int node) const { return pins_.count(node) != 0; }
@@ -67,6 +85,16 @@ class Simulation {
   const SpringGroup& group(SpringType type) const {
     return model_.groups[static_cast<int>(type)];
   }
+
+  // --- colliders and contact ---
+  const std::vector<Collider>& colliders() const { return colliders_; }
+  const ColliderState& colliderState(int index) const { return collider_states_[index]; }
+  /// Index of a collider by name, -1 if none.
+  int colliderIndex(const std::string& name) const;
+  /// Nodes in contact at the end of the last step.
+  std::vector<int> contactNodes() const { return stepper_.contacts().contactNodes(); }
+  /// Deepest any node went inside surface + thickness, over every step (m).
+  double maxPenetration() const { return max_penetration_; }
 
   // --- measurements ---
   double kineticEnergy() const;
@@ -111,6 +139,10 @@ class Simulation {
   double t_ = 0.0;
   long step_count_ = 0;
   std::map<int, PinTarget> pins_;
+  std::vector<Collider> colliders_;
+  std::vector<ColliderState> collider_states_;
+  CollidersOverStep collider_step_;  ///< reused per step
+  double max_penetration_ = 0.0;
   size_t next_event_ = 0;
   double work_in_total_ = 0.0;
   double pending_work_ = 0.0;  ///< work by events since the last step
@@ -125,6 +157,8 @@ class Simulation {
     bool has_prev = false;
     double t = 0.0, h_prev = 0.0, work = 0.0;
     std::vector<std::pair<int, PinTarget>> pins;
+    std::vector<ColliderState> colliders;
+    double max_penetration = 0.0;
   } checkpoint_;
 };
 

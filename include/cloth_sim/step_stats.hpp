@@ -29,6 +29,12 @@ struct StepStats {
   /// bdf2 steps that would have gained energy, retried as backward Euler
   /// (order 1) at the same size before any halving
   int order_reduced = 0;
+  // contact (zero without colliders)
+  int contacts = 0;              ///< nodes in contact at the end of the step
+  double contact_normal_force = 0.0;  ///< sum of normal force magnitudes, N
+  double max_penetration = 0.0;  ///< deepest inside surface + thickness at the step's end, m
+  double contact_work = 0.0;     ///< work of the contact forces on the cloth, J
+  int contact_passes = 0;        ///< solves until the contact set was consistent
   bool ok = true;             ///< false: the step failed and the state was rolled back
   std::string failure;        ///< why, when !ok (or what recovery fixed)
 };

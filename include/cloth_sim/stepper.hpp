@@ -5,6 +5,7 @@
 #include <optional>
 #include <vector>
 
+#include "cloth_sim/contact.hpp"
 #include "cloth_sim/linear_solver.hpp"
 #include "cloth_sim/model.hpp"
 #include "cloth_sim/scene.hpp"
@@ -36,11 +37,22 @@ class Stepper {
   /// `as`, when given, overrides the scene's method for this step: the
   /// recovery retries a bdf2 step as backward Euler (Method::Newton) and, as
   /// a last resort, takes a linearized step (Method::ImplicitEuler).
+  /// With colliders, the step is solved with the contact constraints and
+  /// friction and solved again until the contact set is consistent
+  /// (ContactSet::update); x and v are then on the right side of every
+  /// collider. The contact state carries over to the next step as its start.
   StepStats step(const Model& model, double h, const PinnedEnds& pins,
                  const History& history, VecX& x, VecX& v,
-                 std::optional<Method> as = std::nullopt);
+                 std::optional<Method> as = std::nullopt,
+                 const CollidersOverStep& colliders = {});
+  /// Contacts of the last step.
+  const ContactSet& contacts() const { return contact_; }
+  /// Forgets the contact state (reset, or colliders changed).
+  void clearContacts() { contact_.clear(); }
 
  private:
+  StepStats runMethod(const Model& model, double h, const History& history, VecX& x, VecX& v,
+                      Method method);
   StepStats implicitEuler(const Model& model, double h, VecX& x, VecX& v);
   /// BDF2 from the state one step back; without one (first step, or h
   /// changed) the trapezoidal rule, so the start is second order too (a
@@ -69,7 +81,11 @@ class Stepper {
                             const VecX& f, VecX& g) const;
 
   Scene::Solver settings_;
-  std::vector<char> free_;
+  ConstraintFilter filter_;  ///< pins (eliminated) and contacts (projected)
+  ContactSet contact_;
+  bool contact_on_ = false;  ///< this step has colliders
+  double bh_ = 0.0;          ///< the last solve's b h (reaction scale)
+  VecX x0_, v0_, reaction_, rhs0_;
   const PinnedEnds* pins_ = nullptr;
   SystemMatrix A_;
   CgWorkspace cg_;

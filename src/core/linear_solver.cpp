@@ -32,7 +32,12 @@ const std::vector<SymBlock>& SystemMatrix::fullDiagonal() const {
   return full_diag_;
 }
 
-void SystemMatrix::multiply(const std::vector<char>& free, const VecX& x_in, VecX& y_out) const {
+void SystemMatrix::multiply(const ConstraintFilter& filter, const VecX& x_in, VecX& y_out) const {
+  multiplyAll(x_in, y_out);
+  filter.apply(y_out);
+}
+
+void SystemMatrix::multiplyAll(const VecX& x_in, VecX& y_out) const {
   const int n = numNodes();
   y_out.resize(3 * n);
   const double* __restrict x = x_in.data();
@@ -59,9 +64,6 @@ void SystemMatrix::multiply(const std::vector<char>& free, const VecX& x_in, Vec
     yj[0] -= t0;
     yj[1] -= t1;
     yj[2] -= t2;
-  }
-  for (int i = 0; i < n; ++i) {
-    if (!free[i]) y[3 * i] = y[3 * i + 1] = y[3 * i + 2] = 0.0;
   }
 }
 
@@ -129,21 +131,23 @@ bool CholeskyFactor::factorize(const SystemMatrix& A, const std::vector<Spring>&
 
 namespace {
 
-void applyPreconditioner(Preconditioner kind, CgWorkspace& ws, const std::vector<char>& free,
+/// z = S B r: the preconditioner B is built on the free mask (projected
+/// nodes count as free there), so its output is filtered; r is filtered.
+void applyPreconditioner(Preconditioner kind, CgWorkspace& ws, const ConstraintFilter& filter,
                          const VecX& r, VecX& z) {
+  const std::vector<char>& free = filter.freeMask();
   if (kind == Preconditioner::None) {
     z = r;
     return;
   }
   if (kind == Preconditioner::Multigrid) {
     ws.multigrid->apply(r, z);  // pinned entries come back zero
+    filter.applyProjections(z);
     return;
   }
   if (kind == Preconditioner::Cholesky) {
     ws.cholesky->solve(r, z);
-    for (size_t i = 0; i < free.size(); ++i) {
-      if (!free[i]) z.segment<3>(3 * i).setZero();
-    }
+    filter.apply(z);
     return;
   }
   const int n = static_cast<int>(ws.inv_diag.size());
@@ -154,20 +158,13 @@ void applyPreconditioner(Preconditioner kind, CgWorkspace& ws, const std::vector
       z.segment<3>(3 * i).setZero();
     }
   }
-}
-
-double freeNorm(const VecX& v, const std::vector<char>& free) {
-  double sum = 0.0;
-  for (size_t i = 0; i < free.size(); ++i) {
-    if (free[i]) sum += v.segment<3>(3 * i).squaredNorm();
-  }
-  return std::sqrt(sum);
+  filter.applyProjections(z);
 }
 
 }  // namespace
 
 CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& springs,
-                           const std::vector<char>& free, const VecX& b, VecX& x,
+                           const ConstraintFilter& filter, const VecX& b, VecX& x,
                            Preconditioner preconditioner, double tolerance,
                            int max_iterations, CgWorkspace& ws) {
   const int n = A.numNodes();
@@ -176,13 +173,12 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
   ws.z.resize(dim);
   ws.p.resize(dim);
   ws.q.resize(dim);
-  for (int i = 0; i < n; ++i) {
-    if (!free[i]) x.segment<3>(3 * i).setZero();
-  }
+  const std::vector<char>& free = filter.freeMask();
+  filter.apply(x);
 
   CgResult result;
   bool fresh_factor = false;
-  const double b_norm = freeNorm(b, free);
+  const double b_norm = filter.norm(b);
   if (!(b_norm > 0.0)) {
     x.setZero();
     result.converged = std::isfinite(b_norm);
@@ -193,6 +189,14 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
     ws.inv_diag.resize(n);
     const std::vector<SymBlock>& diag = A.fullDiagonal();
     for (int i = 0; i < n; ++i) ws.inv_diag[i] = diag[i].inverse();
+    // A projected node's block acts on the range of S only: invert
+    // S D S + (I - S) tr(D)/3 (SPD), whose inverse on that range is exact.
+    for (int i : filter.projectedNodes()) {
+      const Mat3 S = filter.projector(i);
+      const Mat3 D = diag[i].toMat3();
+      const Mat3 block = S * D * S + (Mat3::Identity() - S) * (D.trace() / 3.0);
+      ws.inv_diag[i] = SymBlock::from(block.inverse());
+    }
   } else if (preconditioner == Preconditioner::Cholesky) {
     if (!ws.cholesky) ws.cholesky = std::make_shared<CholeskyFactor>();
     fresh_factor = !ws.cholesky->isValidFor(free) ||
@@ -216,24 +220,20 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
   if (x.isZero(0.0)) {
     ws.r = b;  // a cold start (Newton's steppers): no product needed
   } else {
-    A.multiply(free, x, ws.q);
+    A.multiply(filter, x, ws.q);
     ws.r = b - ws.q;
   }
-  for (int i = 0; i < n; ++i) {
-    if (!free[i]) ws.r.segment<3>(3 * i).setZero();
-  }
+  filter.apply(ws.r);
   double r_norm = ws.r.norm();
   // A warm start worse than zero is dropped.
   if (!(r_norm <= b_norm)) {
     x.setZero();
     ws.r = b;
-    for (int i = 0; i < n; ++i) {
-      if (!free[i]) ws.r.segment<3>(3 * i).setZero();
-    }
+    filter.apply(ws.r);
     r_norm = b_norm;
   }
   const double target = tolerance * b_norm;
-  applyPreconditioner(preconditioner, ws, free, ws.r, ws.z);
+  applyPreconditioner(preconditioner, ws, filter, ws.r, ws.z);
   ws.p = ws.z;
   double rz = ws.r.dot(ws.z);
   // A preconditioner kept from an earlier matrix (a reused Cholesky factor,
@@ -249,7 +249,7 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
                          : max_iterations;
   int k = 0;
   while (r_norm > target && k < budget) {
-    A.multiply(free, ws.p, ws.q);
+    A.multiply(filter, ws.p, ws.q);
     const double pq = ws.p.dot(ws.q);
     if (!(pq > 0.0)) break;  // not positive definite (or NaN): stop, report
     const double alpha = rz / pq;
@@ -258,7 +258,7 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
     r_norm = ws.r.norm();
     ++k;
     if (r_norm <= target) break;
-    applyPreconditioner(preconditioner, ws, free, ws.r, ws.z);
+    applyPreconditioner(preconditioner, ws, filter, ws.r, ws.z);
     const double rz_new = ws.r.dot(ws.z);
     ws.p = ws.z + (rz_new / rz) * ws.p;
     rz = rz_new;
@@ -267,7 +267,7 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
     // Too stale for this matrix: rebuild from it and go on from x.
     if (reused_factor) ws.cholesky->invalidate();
     if (reused_multigrid) ws.multigrid->invalidate();
-    CgResult more = conjugateGradient(A, springs, free, b, x, preconditioner, tolerance,
+    CgResult more = conjugateGradient(A, springs, filter, b, x, preconditioner, tolerance,
                                       max_iterations - k, ws);
     more.iterations += k;
     return more;

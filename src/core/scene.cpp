@@ -2,6 +2,7 @@
 // pass. Every error message starts with the dotted path of the bad field, so a
 // user can find it in the file (or in the --set that produced it).
 #include "cloth_sim/scene.hpp"
+#include "scene_yaml.hpp"
 
 #include <yaml-cpp/yaml.h>
 
@@ -18,7 +19,8 @@
 #include <vector>
 
 namespace cloth_sim {
-namespace {
+// Shared with scene_colliders.cpp through scene_yaml.hpp.
+namespace scene_yaml {
 
 constexpr long long kMaxNodes = 4000000;  // a typo like rows: 200000 fails here, not in malloc
 constexpr int kMaxHalvings = 30;          // dt / 2^30 is far below any useful step
@@ -63,50 +65,6 @@ std::string joinNames(const std::vector<std::string>& names) {
 }
 
 // -------------------------------------------------------- YAML readers ----
-
-/// A YAML map checked against the keys it may hold. Null or absent reads as
-/// an empty map; anything else that is not a map, an unknown key or a
-/// repeated key is an error naming it.
-class Fields {
- public:
-  Fields(const YAML::Node& node, std::string path, std::vector<std::string> allowed)
-      : path_(std::move(path)) {
-    if (!node.IsDefined() || node.IsNull()) return;
-    if (!node.IsMap()) {
-      fail(path_.empty() ? "scene" : path_, "expected a map, got " + describe(node));
-    }
-    for (auto it = node.begin(); it != node.end(); ++it) {
-      if (!it->first.IsScalar()) {
-        fail(path_.empty() ? "scene" : path_, "keys must be names, got " + describe(it->first));
-      }
-      const std::string key = it->first.Scalar();
-      if (std::find(allowed.begin(), allowed.end(), key) == allowed.end()) {
-        fail(child(path_, key), "unknown key (expected one of " + joinNames(allowed) + ")");
-      }
-      if (has(key)) fail(child(path_, key), "duplicate key");
-      entries_.emplace_back(key, it->second);
-    }
-  }
-
-  bool has(const std::string& key) const {
-    for (const auto& entry : entries_) {
-      if (entry.first == key) return true;
-    }
-    return false;
-  }
-  YAML::Node get(const std::string& key) const {
-    for (const auto& entry : entries_) {
-      if (entry.first == key) return entry.second;
-    }
-    return YAML::Node();
-  }
-  std::string path(const std::string& key) const { return child(path_, key); }
-  const std::string& path() const { return path_; }
-
- private:
-  std::string path_;
-  std::vector<std::pair<std::string, YAML::Node>> entries_;
-};
 
 bool isYamlInfOrNan(const std::string& text) {
   static const std::set<std::string> kSpecial = {
@@ -343,7 +301,8 @@ void readSolver(const YAML::Node& node, Scene::Solver* solver) {
 }
 
 void readInitial(const YAML::Node& node, Scene::Initial* initial) {
-  const Fields f(node, "initial", {"stretch", "scatter", "seed", "collapse"});
+  const Fields f(node, "initial", {"velocity", "stretch", "scatter", "seed", "collapse"});
+  if (f.has("velocity")) initial->velocity = readVec3(f.get("velocity"), f.path("velocity"));
   if (f.has("stretch")) initial->stretch = readNumber(f.get("stretch"), f.path("stretch"));
   if (f.has("scatter")) initial->scatter = readNumber(f.get("scatter"), f.path("scatter"));
   if (f.has("seed")) {
@@ -355,7 +314,7 @@ void readInitial(const YAML::Node& node, Scene::Initial* initial) {
 
 SceneEvent readEvent(const YAML::Node& node, const std::string& path) {
   static const std::vector<std::string> kActions = {"set_stiffness", "move_pin", "pin",
-                                                    "release"};
+                                                    "release", "move_collider"};
   std::vector<std::string> keys = {"time"};
   keys.insert(keys.end(), kActions.begin(), kActions.end());
   if (!node.IsDefined() || node.IsNull()) fail(path, "expected a map {time: ..., <action>: ...}");
@@ -370,7 +329,7 @@ SceneEvent readEvent(const YAML::Node& node, const std::string& path) {
     if (f.has(action)) actions.push_back(action);
   }
   if (actions.size() != 1) {
-    fail(path, "expected exactly one action (set_stiffness, move_pin, pin, release), got " +
+    fail(path, "expected exactly one action (" + joinNames(kActions) + "), got " +
                    (actions.empty() ? std::string("none")
                                     : std::to_string(actions.size()) + ": " + joinNames(actions)));
   }
@@ -416,6 +375,8 @@ SceneEvent readEvent(const YAML::Node& node, const std::string& path) {
     } else if (event.velocity) {
       fail(g.path("duration"), "required with velocity (s, > 0)");
     }
+  } else if (action == "move_collider") {
+    readMoveCollider(body, action_path, &event);
   } else if (action == "pin") {
     event.kind = SceneEvent::Kind::Pin;
     if (!body.IsSequence()) {
@@ -438,7 +399,7 @@ SceneEvent readEvent(const YAML::Node& node, const std::string& path) {
 Scene sceneFromYaml(const YAML::Node& root) {
   const Fields top(root, "",
                    {"cloth", "springs", "gravity", "air_drag", "pins", "solver", "initial",
-                    "events"});
+                    "contact", "colliders", "events"});
   Scene scene;
   readCloth(top.get("cloth"), &scene.cloth);
   readSprings(top.get("springs"), &scene);
@@ -447,6 +408,7 @@ Scene sceneFromYaml(const YAML::Node& root) {
   scene.pins = readIndices(top.get("pins"), "pins");
   readSolver(top.get("solver"), &scene.solver);
   readInitial(top.get("initial"), &scene.initial);
+  readContact(top.get("contact"), top.get("colliders"), &scene);
 
   const YAML::Node events = top.get("events");
   if (events.IsDefined() && !events.IsNull()) {
@@ -686,6 +648,7 @@ void validateSolver(const Scene::Solver& solver) {
 }
 
 void validateInitial(const Scene::Initial& initial) {
+  requireFiniteVec(initial.velocity, "initial.velocity");
   requirePositive(initial.stretch, "initial.stretch");
   requireNonNegative(initial.scatter, "initial.scatter");
 }
@@ -729,6 +692,9 @@ void validateEvent(const SceneEvent& event, const Scene& scene, const std::strin
     case SceneEvent::Kind::Release:
       if (!event.release_all) requireNodeList(event.indices, num_nodes, path + ".release", true);
       break;
+    case SceneEvent::Kind::MoveCollider:
+      validateMoveCollider(event, scene, path + ".move_collider");
+      break;
   }
 }
 
@@ -745,7 +711,9 @@ void validateEvents(const Scene& scene) {
   }
 }
 
-}  // namespace
+}  // namespace scene_yaml
+
+using namespace scene_yaml;
 
 Scene parseScene(const std::string& yaml_text, const std::vector<std::string>& overrides) {
   return parseWithSource(yaml_text, overrides, "");
@@ -771,6 +739,7 @@ void validateScene(const Scene& scene) {
   requireNodeList(scene.pins, scene.numNodes(), "pins", false);
   validateSolver(scene.solver);
   validateInitial(scene.initial);
+  validateContact(scene);
   validateEvents(scene);
 }
 

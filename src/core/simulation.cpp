@@ -59,7 +59,8 @@ Simulation::Simulation(const Scene& scene) : scene_(scene), stepper_(scene.solve
 void Simulation::reset() {
   model_ = buildModel(scene_);
   x_ = initialPositions(scene_, model_.rest_positions);
-  v_.setZero(x_.size());
+  v_.resize(x_.size());
+  for (int i = 0; i < model_.numNodes(); ++i) v_.segment<3>(3 * i) = scene_.initial.velocity;
   x_prev_.resize(0);
   v_prev_.resize(0);
   has_prev_ = false;
@@ -73,6 +74,15 @@ void Simulation::reset() {
   last_stats_.energy = measures_.total();
   last_stats_.max_strain = measures_.max_strain;
   stepper_ = Stepper(scene_.solver);
+  colliders_.clear();
+  collider_states_.clear();
+  for (const ColliderParams& params : scene_.colliders) {
+    colliders_.push_back(Collider::fromParams(params, scene_.contact.friction));
+    collider_states_.push_back(ColliderState{colliders_.back().scenePose()});
+  }
+  collider_step_.colliders = &colliders_;
+  collider_step_.thickness = scene_.contact.thickness;
+  max_penetration_ = 0.0;
   pins_.clear();
   for (int p : scene_.pins) pins_[p] = PinTarget{position(p), Vec3::Zero(), 0.0};
   size_ = std::hypot(scene_.cloth.cols > 1 ? scene_.cloth.width : 0.0, scene_.cloth.length);
@@ -109,6 +119,8 @@ StepStats Simulation::step(double h) {
     checkpoint_.h_prev = h_prev_;
     checkpoint_.work = work_in_total_;
     checkpoint_.pins.assign(pins_.begin(), pins_.end());
+    checkpoint_.colliders = collider_states_;
+    checkpoint_.max_penetration = max_penetration_;
   }
   StepStats stats = stepWithRecovery(h, 0);
   if (!stats.ok && scene_.solver.recovery) {
@@ -121,6 +133,8 @@ StepStats Simulation::step(double h) {
     h_prev_ = checkpoint_.h_prev;
     work_in_total_ = checkpoint_.work;
     pins_ = std::map<int, PinTarget>(checkpoint_.pins.begin(), checkpoint_.pins.end());
+    collider_states_ = checkpoint_.colliders;
+    max_penetration_ = checkpoint_.max_penetration;
     measures_ = measureEnergy(model_, x_, v_);
   }
   if (stats.ok) ++step_count_;
@@ -161,7 +175,16 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
   History history;
   if (has_prev_) history = History{&x_prev_, &v_prev_, h_prev_};
 
-  StepStats stats = stepper_.step(model_, h, pin_ends_, history, x_, v_, as);
+  // Colliders at the start and the end of the step (their drift, like pins').
+  collider_step_.start.clear();
+  collider_step_.end.clear();
+  for (const ColliderState& c : collider_states_) {
+    const double drift = std::clamp(c.velocity_until - t_, 0.0, h);
+    collider_step_.start.push_back(c.pose);
+    collider_step_.end.push_back(Pose{c.pose.rotation, c.pose.translation + drift * c.velocity});
+  }
+
+  StepStats stats = stepper_.step(model_, h, pin_ends_, history, x_, v_, as, collider_step_);
 
   // Work the pins did: reaction at the end of the step times their travel.
   // Only computed when a pin moved (static pins do no work).
@@ -187,7 +210,9 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
   EnergyParts after;
   if (stats.ok) {
     after = measureEnergy(model_, x_, v_);
-    const double gain = after.total() - before.total() - std::max(work, 0.0);
+    // Moving colliders (and pushing a node out of one) do work on the cloth too.
+    const double gain = after.total() - before.total() - std::max(work, 0.0) -
+                        std::max(stats.contact_work, 0.0);
     // Backward Euler (linearized or not) must not create energy. BDF2 is only
     // dissipative in its own two-step norm, not step by step, and its
     // trapezoidal start not at all: the check holds both to the same bound (a
@@ -218,6 +243,12 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
     pin.position = pin_ends_.targets[k];
     if (t_ >= pin.velocity_until) pin.velocity.setZero();
   }
+  for (size_t k = 0; k < collider_states_.size(); ++k) {
+    ColliderState& c = collider_states_[k];
+    c.pose = collider_step_.end[k];
+    if (t_ >= c.velocity_until) c.velocity.setZero();
+  }
+  max_penetration_ = std::max(max_penetration_, stats.max_penetration);
   stats.work_in = work;
   work_in_total_ += work;
   return stats;
@@ -239,6 +270,12 @@ void Simulation::accumulate(const StepStats& part, StepStats* total) const {
   total->halvings = std::max(total->halvings, part.halvings);
   total->linearized += part.linearized;
   total->order_reduced += part.order_reduced;
+  total->contact_passes += part.contact_passes;
+  total->contact_work += part.contact_work;
+  // The contact figures of the last sub-step are those at the end of the step.
+  total->contacts = part.contacts;
+  total->contact_normal_force = part.contact_normal_force;
+  total->max_penetration = std::max(total->max_penetration, part.max_penetration);
   total->ok = total->ok && part.ok;
   if (!part.failure.empty()) total->failure = part.failure;
 }
@@ -349,6 +386,12 @@ Status Simulation::applyEvent(const SceneEvent& e) {
       }
       return fresh.empty() ? Status::success() : pin(fresh);
     }
+    case SceneEvent::Kind::MoveCollider: {
+      const int k = colliderIndex(e.collider);
+      const Vec3 from = k >= 0 ? collider_states_[k].pose.translation : Vec3::Zero();
+      return moveCollider(e.collider, e.position.value_or(from),
+                          e.velocity.value_or(Vec3::Zero()), e.duration);
+    }
     case SceneEvent::Kind::Release:
       if (e.release_all) {
         releaseAll();
@@ -422,6 +465,48 @@ Status Simulation::release(const std::vector<int>& indices) {
 }
 
 void Simulation::releaseAll() { pins_.clear(); }
+
+int Simulation::colliderIndex(const std::string& name) const {
+  for (size_t k = 0; k < colliders_.size(); ++k) {
+    if (colliders_[k].name() == name) return static_cast<int>(k);
+  }
+  return -1;
+}
+
+Status Simulation::moveCollider(const std::string& name, const Vec3& position,
+                                const Vec3& velocity, double duration) {
+  const int k = colliderIndex(name);
+  if (name.empty() || k < 0) return Status::error("name: no collider named '" + name + "'");
+  if (!finite(position)) return Status::error("position: must be finite");
+  if (!finite(velocity)) return Status::error("velocity: must be finite");
+  if (!(duration >= 0.0) || !std::isfinite(duration)) {
+    return Status::error("duration: must be >= 0 and finite, got " + fmt(duration));
+  }
+  ColliderState& c = collider_states_[k];
+  c.pose.translation = position;
+  c.velocity = velocity;
+  c.velocity_until = t_ + duration;
+  return Status::success();
+}
+
+Status Simulation::setColliderPose(int index, const Pose& pose, const Vec3& velocity) {
+  if (index < 0 || index >= static_cast<int>(colliders_.size())) {
+    return Status::error("index: collider " + std::to_string(index) + " out of range");
+  }
+  if (!pose.rotation.allFinite() || !finite(pose.translation)) {
+    return Status::error("pose: must be finite");
+  }
+  const Mat3 orthogonality = pose.rotation.transpose() * pose.rotation - Mat3::Identity();
+  if (!(orthogonality.norm() < 1e-6) || !(pose.rotation.determinant() > 0.0)) {
+    return Status::error("pose: rotation must be a proper rotation matrix");
+  }
+  if (!finite(velocity)) return Status::error("velocity: must be finite");
+  ColliderState& c = collider_states_[index];
+  c.pose = pose;
+  c.velocity = velocity;
+  c.velocity_until = velocity.isZero(0.0) ? t_ : std::numeric_limits<double>::infinity();
+  return Status::success();
+}
 
 Status Simulation::setStiffness(const std::string& spring_type, double stiffness,
                                 double damping) {

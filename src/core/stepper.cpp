@@ -16,22 +16,16 @@ double secondsSince(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-void zeroPinned(const std::vector<char>& free, VecX& v) {
-  for (size_t i = 0; i < free.size(); ++i) {
-    if (!free[i]) v.segment<3>(3 * i).setZero();
-  }
-}
-
 }  // namespace
 
 CgResult Stepper::solveLinear(const Model& model, const VecX& b, VecX& x) {
-  return conjugateGradient(A_, model.springs, free_, b, x, settings_.preconditioner,
+  return conjugateGradient(A_, model.springs, filter_, b, x, settings_.preconditioner,
                            settings_.tolerance, settings_.max_iterations, cg_);
 }
 
 void Stepper::setPins(const Model& model, const PinnedEnds& pins) {
-  free_.assign(model.numNodes(), 1);
-  for (int node : pins.nodes) free_[node] = 0;
+  filter_.reset(model.numNodes());
+  for (int node : pins.nodes) filter_.eliminate(node);
   pins_ = &pins;
   cg_.grid_rows = model.rows;
   cg_.grid_cols = model.cols;
@@ -39,11 +33,78 @@ void Stepper::setPins(const Model& model, const PinnedEnds& pins) {
 }
 
 StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
-                        const History& history, VecX& x, VecX& v, std::optional<Method> as) {
+                        const History& history, VecX& x, VecX& v, std::optional<Method> as,
+                        const CollidersOverStep& colliders) {
   const auto start = Clock::now();
   setPins(model, pins);
+  const Method method = as.value_or(settings_.method);
+  contact_on_ = !colliders.empty();
   StepStats stats;
-  switch (as.value_or(settings_.method)) {
+  if (!contact_on_) {
+    contact_.clear();
+    stats = runMethod(model, h, history, x, v, method);
+  } else {
+    x0_ = x;
+    v0_ = v;
+    contact_.begin(colliders, filter_, x, v, model.gravity, h);
+    for (int pass = 1;; ++pass) {
+      if (pass > 1) {
+        x = x0_;
+        v = v0_;
+        setPins(model, pins);
+      }
+      contact_.constrain(filter_);
+      const StepStats part = runMethod(model, h, history, x, v, method);
+      if (pass == 1) {
+        stats = part;
+      } else {
+        stats.cg_iterations += part.cg_iterations;
+        stats.newton_iterations += part.newton_iterations;
+        stats.residual = std::max(stats.residual, part.residual);
+        stats.newton_residual = part.newton_residual;
+        stats.linear_converged = part.linear_converged;
+        stats.newton_converged = part.newton_converged;
+        stats.assembly_s += part.assembly_s;
+        stats.solve_s += part.solve_s;
+        stats.ok = part.ok;
+        stats.failure = part.failure;
+      }
+      stats.contact_passes = pass;
+      if (!stats.ok || !x.allFinite() || !v.allFinite()) break;
+      const ContactCheck check =
+          contact_.update(colliders, filter_, model.mass, x0_, x, v, reaction_, bh_);
+      if (check == ContactCheck::Consistent) break;
+      if (check == ContactCheck::Failed) {
+        stats.ok = false;
+        stats.failure = contact_.failure();
+        break;
+      }
+      if (pass == ContactSet::kMaxPasses) {
+        stats.ok = false;
+        stats.failure = "contact set did not settle in " + std::to_string(pass) + " passes";
+        break;
+      }
+    }
+    if (stats.ok) {
+      stats.contacts = contact_.numContacts();
+      stats.contact_normal_force = contact_.normalForce();
+      stats.max_penetration = contact_.maxPenetration();
+      stats.contact_work = contact_.work(x0_, x, reaction_, bh_);
+    }
+  }
+  stats.finite = x.allFinite() && v.allFinite();
+  if (!stats.finite) {
+    stats.ok = false;
+    stats.failure = "non-finite position or velocity";
+  }
+  stats.wall_time_s = secondsSince(start);
+  return stats;
+}
+
+StepStats Stepper::runMethod(const Model& model, double h, const History& history, VecX& x,
+                             VecX& v, Method method) {
+  StepStats stats;
+  switch (method) {
     case Method::ImplicitEuler:
       stats = implicitEuler(model, h, x, v);
       break;
@@ -57,12 +118,6 @@ StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
       stats = symplecticEuler(model, h, x, v);
       break;
   }
-  stats.finite = x.allFinite() && v.allFinite();
-  if (!stats.finite) {
-    stats.ok = false;
-    stats.failure = "non-finite position or velocity";
-  }
-  stats.wall_time_s = secondsSince(start);
   return stats;
 }
 
@@ -93,6 +148,11 @@ StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v)
   // Pinned velocity changes are prescribed: move their columns to the right side.
   pinned_dv_.setZero(3 * n);
   bool pins_move = false;
+  if (contact_on_) {
+    rhs0_ = rhs_;  // without friction: the contact reaction is measured against it
+    pins_move = contact_.prescribeChange(x, h, v, pinned_dv_);
+    contact_.addFriction(rhs_, h);
+  }
   for (size_t k = 0; k < pins_->nodes.size(); ++k) {
     const int p = pins_->nodes[k];
     const Vec3 dv = (pins_->targets[k] - x.segment<3>(3 * p)) / h - v.segment<3>(3 * p);
@@ -100,10 +160,10 @@ StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v)
     pins_move = pins_move || dv.squaredNorm() > 0.0;
   }
   if (pins_move) {
-    A_.multiply(free_, pinned_dv_, g_);
+    A_.multiplyAll(pinned_dv_, g_);
     rhs_ -= g_;
   }
-  zeroPinned(free_, rhs_);
+  filter_.apply(rhs_);
   stats.assembly_s = secondsSince(t0);
 
   t0 = Clock::now();
@@ -115,8 +175,15 @@ StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v)
   stats.linear_converged = cg.converged;
   stats.newton_iterations = 1;
 
-  v += dv_ + pinned_dv_;
+  dv_ += pinned_dv_;
+  v += dv_;
   x += h * v;
+  if (contact_on_) {  // reaction = A dv - rhs0: what the constraints supplied, times h
+    A_.multiplyAll(dv_, g_);
+    reaction_ = g_ - rhs0_;
+    bh_ = h;
+  }
+  dv_ -= pinned_dv_;  // the free part warm-starts the next solve
   for (size_t k = 0; k < pins_->nodes.size(); ++k) {
     x.segment<3>(3 * pins_->nodes[k]) = pins_->targets[k];  // exactly on target
   }
@@ -137,7 +204,8 @@ double Stepper::residualFromForces(const Model& model, double bh, const VecX& av
     g.segment<3>(3 * i) = model.mass[i] * (v1.segment<3>(3 * i) - av.segment<3>(3 * i)) -
                           bh * f.segment<3>(3 * i);
   }
-  zeroPinned(free_, g);
+  if (contact_on_) contact_.addFriction(g, -bh);
+  filter_.apply(g);
   return g.norm();
 }
 
@@ -154,6 +222,7 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
     const int p = pins_->nodes[k];
     v1.segment<3>(3 * p) = (pins_->targets[k] - ax_.segment<3>(3 * p)) / bh;
   }
+  if (contact_on_) contact_.prescribe(ax_, bh, v1);
   // Every iterate's forces come from one evaluation: the assembly gives f at
   // the start, the line search's accepted trial the g of the next iterate.
   auto t0 = Clock::now();
@@ -245,6 +314,15 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
     stats.ok = false;
     stats.failure = "newton residual grew";
   }
+  if (contact_on_) {  // reaction = M (v1 - av) - b h f(x1, v1), friction left out
+    computeForces(model, x, v1, f_);
+    reaction_.resize(v1.size());
+    for (int i = 0; i < model.numNodes(); ++i) {
+      reaction_.segment<3>(3 * i) = model.mass[i] * (v1.segment<3>(3 * i) - av_.segment<3>(3 * i)) -
+                                    bh * f_.segment<3>(3 * i);
+    }
+    bh_ = bh;
+  }
   return stats;
 }
 
@@ -270,6 +348,7 @@ double Stepper::incrementalPotential(const Model& model, double bh, const VecX& 
   for (int i = 0; i < model.numNodes(); ++i) {
     phi += 0.5 * model.mass[i] * (v1.segment<3>(3 * i) - av.segment<3>(3 * i)).squaredNorm();
   }
+  if (contact_on_) phi -= bh * contact_.frictionPower(v1);  // lagged friction: a linear potential
   return phi + bh * dissipation;
 }
 
@@ -278,7 +357,7 @@ StepStats Stepper::symplecticEuler(const Model& model, double h, VecX& x, VecX& 
   auto t0 = Clock::now();
   computeForces(model, x, v, f_);
   for (int i = 0; i < model.numNodes(); ++i) {
-    if (free_[i]) v.segment<3>(3 * i) += (h / model.mass[i]) * f_.segment<3>(3 * i);
+    if (!filter_.isEliminated(i)) v.segment<3>(3 * i) += (h / model.mass[i]) * f_.segment<3>(3 * i);
   }
   for (size_t k = 0; k < pins_->nodes.size(); ++k) {
     const int p = pins_->nodes[k];

@@ -1,0 +1,96 @@
+// Which directions of each node's velocity change an implicit solve may set
+// (Baraff & Witkin 1998, section 5: constraint filtering inside PCG).
+//
+// Three kinds of node:
+//  - free: every direction (the filter is I);
+//  - eliminated: none (a pin; the filter is 0). The preconditioners leave
+//    these nodes out of their structure, as before contact existed;
+//  - projected: the range of a symmetric projector S (a contact: I - n n^T
+//    while the node slides on a surface, 0 while it sticks). The
+//    preconditioners see these nodes as free and the filter is applied to
+//    what they return, so contacts that come and go never rebuild a
+//    Cholesky pattern or a multigrid hierarchy.
+// With no projected node the filter costs what the old 0/1 pin mask did.
+#pragma once
+
+#include <vector>
+
+#include "cloth_sim/types.hpp"
+
+namespace cloth_sim {
+
+class ConstraintFilter {
+ public:
+  ConstraintFilter() = default;
+  /// From a 0/1 mask (1 = free, 0 = eliminated): the pins-only filter.
+  ConstraintFilter(const std::vector<char>& free)  // NOLINT: implicit on purpose
+      : free_(free), slot_(free.size(), -1) {}
+
+  /// Every node free.
+  void reset(int num_nodes) {
+    free_.assign(num_nodes, 1);
+    slot_.assign(num_nodes, -1);
+    nodes_.clear();
+    projectors_.clear();
+  }
+  /// The node leaves the solve (a pin).
+  void eliminate(int node) {
+    free_[node] = 0;
+    unproject(node);
+  }
+  /// The node keeps only the range of S (symmetric projector: S S = S).
+  void project(int node, const Mat3& S) {
+    if (!free_[node]) return;  // a pin wins over a contact
+    if (slot_[node] < 0) {
+      slot_[node] = static_cast<int>(nodes_.size());
+      nodes_.push_back(node);
+      projectors_.push_back(S);
+    } else {
+      projectors_[slot_[node]] = S;
+    }
+  }
+  /// Removes a node's projection (it becomes free again, unless eliminated).
+  void unproject(int node);
+
+  int numNodes() const { return static_cast<int>(free_.size()); }
+  /// 1 unless eliminated: the structure the preconditioners are built on.
+  const std::vector<char>& freeMask() const { return free_; }
+  bool isEliminated(int node) const { return !free_[node]; }
+  bool isProjected(int node) const { return slot_[node] >= 0; }
+  bool hasProjections() const { return !nodes_.empty(); }
+  const std::vector<int>& projectedNodes() const { return nodes_; }
+  /// S of a node (I when free, 0 when eliminated).
+  Mat3 projector(int node) const {
+    if (!free_[node]) return Mat3::Zero();
+    return slot_[node] < 0 ? Mat3::Identity() : projectors_[slot_[node]];
+  }
+
+  /// v <- S v for every node.
+  void apply(VecX& v) const {
+    for (size_t i = 0; i < free_.size(); ++i) {
+      if (!free_[i]) v.segment<3>(3 * i).setZero();
+    }
+    applyProjections(v);
+  }
+  /// v <- S v on the projected nodes only (eliminated ones already zero).
+  void applyProjections(VecX& v) const {
+    for (size_t k = 0; k < nodes_.size(); ++k) {
+      const int i = nodes_[k];
+      v.segment<3>(3 * i) = projectors_[k] * Vec3(v.segment<3>(3 * i));
+    }
+  }
+  /// |S v| without changing v.
+  double norm(const VecX& v) const;
+
+  bool operator==(const ConstraintFilter& o) const {
+    return free_ == o.free_ && nodes_ == o.nodes_ && projectors_ == o.projectors_;
+  }
+
+ private:
+  std::vector<char> free_;
+  std::vector<int> slot_;  ///< index into nodes_/projectors_, -1 if not projected
+  std::vector<int> nodes_;
+  std::vector<Mat3> projectors_;
+};
+
+}  // namespace cloth_sim

@@ -1,0 +1,147 @@
+// Contact between the cloth's nodes and rigid colliders, inside the implicit
+// solve (Baraff & Witkin 1998, section 5; docs/design.md "Contact"):
+//  - detection: a node whose path over the step comes within `thickness` of a
+//    collider (swept, so nothing tunnels) gets a contact: the plane tangent
+//    to the collider at the contact point, moved out by the thickness;
+//  - constraint: the solve keeps the node's end position on that plane
+//    (filter S = I - n n^T and a prescribed normal velocity; two planes at
+//    an edge or between two colliders); a sticking node is held entirely,
+//    moving with the collider's surface;
+//  - friction: a sliding node feels mu times its normal force against its
+//    slip, the normal force lagged from the previous pass of the same step.
+// After each solve `update` checks the answer against Coulomb's law and the
+// colliders (adhesion released, stick/slip switched, new contacts added);
+// the step is solved again until nothing changes. With no colliders none of
+// this runs.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "cloth_sim/collider.hpp"
+#include "cloth_sim/constraint_filter.hpp"
+#include "cloth_sim/types.hpp"
+
+namespace cloth_sim {
+
+/// The colliders over one step: their shapes, poses at its start and end.
+struct CollidersOverStep {
+  const std::vector<Collider>* colliders = nullptr;
+  std::vector<Pose> start, end;
+  double thickness = 0.0;
+  bool empty() const { return !colliders || colliders->empty(); }
+};
+
+/// What the last update found.
+enum class ContactCheck { Consistent, Changed, Failed };
+
+class ContactSet {
+ public:
+  /// Contact passes a step may take before it is reported as failed.
+  static constexpr int kMaxPasses = 25;
+  /// A node's friction force may lag the normal force of the same step by
+  /// this fraction (and its direction by this many radians) before the step
+  /// is solved again.
+  static constexpr double kFrictionLag = 1e-3;
+  /// A node ends a step at least thickness - kPenetrationTolerance from every
+  /// collider (m); deeper counts as a new contact.
+  static constexpr double kPenetrationTolerance = 1e-10;
+
+  /// Drops every contact (a reset).
+  void clear() {
+    nodes_.clear();
+    slot_.clear();
+  }
+
+  /// Start of a step from (x0, v0): keeps last step's contacts that still
+  /// touch, re-linearised at x0, and adds those the predicted path
+  /// x0 + h v0 + h^2 g would make. Pinned nodes (eliminated) get none.
+  void begin(const CollidersOverStep& colliders, const ConstraintFilter& pins, const VecX& x0,
+             const VecX& v0, const Vec3& gravity, double h);
+  /// Projects the contact nodes in the filter (after the pins are set).
+  void constrain(ConstraintFilter& filter) const;
+  /// The constrained part of node k's end velocity: v1 = S v1 + w, so that
+  /// x1 = ax + bh v1 is on every contact plane (and moves with the surface
+  /// when sticking).
+  Vec3 prescribed(size_t k, const VecX& ax, double bh) const;
+  /// v1 <- S v1 + w on every contact node.
+  void prescribe(const VecX& ax, double bh, VecX& v1) const;
+  /// The same as a velocity change from v0: c = w - (I - S) v0 on the
+  /// contact nodes (other entries untouched). Returns whether any is nonzero.
+  bool prescribeChange(const VecX& ax, double bh, const VecX& v0, VecX& c) const;
+  /// f += scale * friction on the sliding nodes (lagged normal force, against
+  /// the slip).
+  void addFriction(VecX& f, double scale = 1.0) const;
+  /// Sum over the sliding nodes of friction . v (the friction's power).
+  double frictionPower(const VecX& v) const;
+
+  /// Checks a solved step. `reaction` is b h times the contact force on each
+  /// node: M (v1 - av) - b h f(x1, v1), friction left out. Updates normal
+  /// forces, releases pulling contacts, switches stick/slip, adds contacts
+  /// where the path x0 -> x1 comes too close. Fills maxPenetration().
+  ContactCheck update(const CollidersOverStep& colliders, const ConstraintFilter& pins,
+                      const std::vector<double>& mass, const VecX& x0, const VecX& x1,
+                      const VecX& v1, const VecX& reaction, double bh);
+  /// Why the last update failed.
+  const std::string& failure() const { return failure_; }
+
+  // --- after a consistent update ---
+  int numContacts() const { return static_cast<int>(nodes_.size()); }
+  /// Sum of the normal force magnitudes (N).
+  double normalForce() const;
+  /// Deepest any node went inside surface + thickness at the end of the step (m, >= 0).
+  double maxPenetration() const { return max_penetration_; }
+  /// Work the contact forces did on the nodes over the step (J).
+  double work(const VecX& x0, const VecX& x1, const VecX& reaction, double bh) const;
+  bool empty() const { return nodes_.empty(); }
+  std::vector<int> contactNodes() const;
+
+ private:
+  static constexpr int kMaxPlanes = 2;
+  struct Plane {
+    int collider = -1;
+    Vec3 local_point = Vec3::Zero();   ///< on the surface, collider frame
+    Vec3 local_normal = Vec3::UnitZ();
+    Vec3 normal = Vec3::UnitZ();       ///< world, end of step
+    double offset = 0.0;               ///< n . x1 = offset
+    Vec3 surface_velocity = Vec3::Zero();  ///< of the contact point over the step
+    double normal_force = 0.0;       ///< N, last check
+  };
+  struct NodeContact {
+    int node = -1;
+    int num_planes = 0;
+    Plane plane[kMaxPlanes];
+    bool sticking = true;
+    Vec3 slip = Vec3::Zero();   ///< unit slip direction (sliding)
+    double friction = 0.0;      ///< friction force magnitude used in the solve (N)
+    bool held = false;          ///< released once this step and back: kept
+    // derived by refresh():
+    Mat3 tangent = Mat3::Identity();  ///< projector on the tangent space
+    Vec3 surface_velocity = Vec3::Zero();
+    double mu = 0.0;
+  };
+
+  /// Sets a plane from a surface point in collider k's frame (world values at
+  /// the end pose, the surface velocity from start to end).
+  void setPlane(Plane& p, int collider, const SurfacePoint& local,
+                const CollidersOverStep& colliders, double h) const;
+  /// Projector and friction coefficient from the planes. False: no room.
+  bool refresh(NodeContact& c, const CollidersOverStep& colliders);
+  /// Adds collider k's plane to node contact c (or replaces a parallel one).
+  bool addPlane(NodeContact& c, int collider, const SurfacePoint& local,
+                const CollidersOverStep& colliders);
+  void reindex(int num_nodes);
+  /// Appends a node with no planes yet; returns its slot.
+  int addNode(int node, bool sticking);
+  /// Whether the node in `slot` (-1: none) has a plane of this collider.
+  bool touches(int slot, int collider) const;
+
+  std::vector<NodeContact> nodes_;
+  std::vector<int> slot_;  ///< per node: index in nodes_, -1 if not in contact
+  std::vector<int> released_;  ///< nodes released this step (cycling guard)
+  double h_ = 0.0;
+  double max_penetration_ = 0.0;
+  std::string failure_;
+};
+
+}  // namespace cloth_sim

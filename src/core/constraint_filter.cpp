@@ -1,0 +1,31 @@
+#include "cloth_sim/constraint_filter.hpp"
+
+#include <cmath>
+
+namespace cloth_sim {
+
+void ConstraintFilter::unproject(int node) {
+  const int k = slot_[node];
+  if (k < 0) return;
+  // Swap with the last entry so the lists stay dense.
+  const int last = static_cast<int>(nodes_.size()) - 1;
+  nodes_[k] = nodes_[last];
+  projectors_[k] = projectors_[last];
+  slot_[nodes_[k]] = k;
+  nodes_.pop_back();
+  projectors_.pop_back();
+  slot_[node] = -1;
+}
+
+double ConstraintFilter::norm(const VecX& v) const {
+  double sum = 0.0;
+  for (size_t i = 0; i < free_.size(); ++i) {
+    if (free_[i] && slot_[i] < 0) sum += v.segment<3>(3 * i).squaredNorm();
+  }
+  for (size_t k = 0; k < nodes_.size(); ++k) {
+    sum += (projectors_[k] * Vec3(v.segment<3>(3 * nodes_[k]))).squaredNorm();
+  }
+  return std::sqrt(sum);
+}
+
+}  // namespace cloth_sim

@@ -1,0 +1,369 @@
+#include "cloth_sim/contact.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace cloth_sim {
+
+namespace {
+
+/// Cosine beyond which two contact normals count as the same direction (or
+/// opposite): their planes then cannot both be kept as equalities.
+constexpr double kParallel = 1.0 - 1e-6;
+
+}  // namespace
+
+void ContactSet::reindex(int num_nodes) {
+  slot_.assign(num_nodes, -1);
+  for (size_t k = 0; k < nodes_.size(); ++k) slot_[nodes_[k].node] = static_cast<int>(k);
+}
+
+int ContactSet::addNode(int node, bool sticking) {
+  NodeContact c;
+  c.node = node;
+  c.sticking = sticking;
+  nodes_.push_back(c);
+  slot_[node] = static_cast<int>(nodes_.size()) - 1;
+  return slot_[node];
+}
+
+bool ContactSet::touches(int slot, int collider) const {
+  if (slot < 0) return false;
+  const NodeContact& c = nodes_[slot];
+  for (int q = 0; q < c.num_planes; ++q) {
+    if (c.plane[q].collider == collider) return true;
+  }
+  return false;
+}
+
+std::vector<int> ContactSet::contactNodes() const {
+  std::vector<int> out;
+  out.reserve(nodes_.size());
+  for (const NodeContact& c : nodes_) out.push_back(c.node);
+  return out;
+}
+
+void ContactSet::setPlane(Plane& p, int collider, const SurfacePoint& local,
+                          const CollidersOverStep& colliders, double h) const {
+  const Pose& start = colliders.start[collider];
+  const Pose& end = colliders.end[collider];
+  p.collider = collider;
+  p.local_point = local.point;
+  p.local_normal = local.normal;
+  p.normal = end.rotation * local.normal;
+  const Vec3 point_end = end.toWorld(local.point);
+  p.offset = p.normal.dot(point_end) + colliders.thickness;
+  p.surface_velocity = (point_end - start.toWorld(local.point)) / h;
+}
+
+bool ContactSet::refresh(NodeContact& c, const CollidersOverStep& colliders) {
+  const Plane& a = c.plane[0];
+  Mat3 normal_part = a.normal * a.normal.transpose();
+  c.surface_velocity = a.surface_velocity;
+  c.mu = (*colliders.colliders)[a.collider].friction();
+  if (c.num_planes == 2) {
+    const Plane& b = c.plane[1];
+    // Projector on span(n1, n2): N G^-1 N^T with G the Gram matrix.
+    const double g = a.normal.dot(b.normal);
+    const double det = 1.0 - g * g;
+    if (!(det > 1.0 - kParallel * kParallel)) return false;
+    normal_part = (a.normal * a.normal.transpose() + b.normal * b.normal.transpose() -
+                   g * (a.normal * b.normal.transpose() + b.normal * a.normal.transpose())) /
+                  det;
+    c.surface_velocity = 0.5 * (a.surface_velocity + b.surface_velocity);
+    c.mu = std::max(c.mu, (*colliders.colliders)[b.collider].friction());
+  }
+  c.tangent = Mat3::Identity() - normal_part;
+  return true;
+}
+
+bool ContactSet::addPlane(NodeContact& c, int collider, const SurfacePoint& local,
+                          const CollidersOverStep& colliders) {
+  Plane p;
+  setPlane(p, collider, local, colliders, h_);
+  for (int k = 0; k < c.num_planes; ++k) {
+    Plane& e = c.plane[k];
+    const double cosine = e.normal.dot(p.normal);
+    if (cosine > kParallel) {  // the same direction: the tighter plane
+      if (p.offset > e.offset) e = p;
+      return refresh(c, colliders);
+    }
+    if (cosine < -kParallel) {
+      // Opposite planes n.x = d1 and -n.x = d2 leave room only if d1 + d2 <= 0.
+      if (e.offset + p.offset > kPenetrationTolerance) {
+        const auto& all = *colliders.colliders;
+        failure_ = "node " + std::to_string(c.node) + " is squeezed between colliders '" +
+                   all[e.collider].name() + "' and '" + all[p.collider].name() +
+                   "' with no room for it (gap " + std::to_string(-(e.offset + p.offset) +
+                   2.0 * colliders.thickness) + " m, thickness " +
+                   std::to_string(colliders.thickness) + " m on each side)";
+        return false;
+      }
+      e = p;  // pressed against the other one now
+      return refresh(c, colliders);
+    }
+  }
+  if (c.num_planes < kMaxPlanes) {
+    c.plane[c.num_planes++] = p;
+  } else {
+    // A third surface: it replaces the plane that pushes least.
+    const int weakest = c.plane[0].normal_force <= c.plane[1].normal_force ? 0 : 1;
+    c.plane[weakest] = p;
+  }
+  return refresh(c, colliders);
+}
+
+void ContactSet::begin(const CollidersOverStep& colliders, const ConstraintFilter& pins,
+                       const VecX& x0, const VecX& v0, const Vec3& gravity, double h) {
+  h_ = h;
+  released_.clear();
+  failure_.clear();
+  const auto& all = *colliders.colliders;
+  const double thickness = colliders.thickness;
+  // Last step's contacts, re-linearised at x0 while they still touch.
+  std::vector<NodeContact> kept;
+  kept.reserve(nodes_.size());
+  for (NodeContact c : nodes_) {
+    if (pins.isEliminated(c.node)) continue;
+    const Vec3 x = x0.segment<3>(3 * c.node);
+    const double reach = 1e-6 + h * v0.segment<3>(3 * c.node).norm() + h * h * gravity.norm();
+    int planes = 0;
+    for (int k = 0; k < c.num_planes; ++k) {
+      const int id = c.plane[k].collider;
+      const SurfacePoint s = all[id].closestLocal(colliders.start[id].toLocal(x));
+      if (s.distance - thickness > reach) continue;
+      const double force = c.plane[k].normal_force;
+      setPlane(c.plane[planes], id, s, colliders, h);
+      c.plane[planes++].normal_force = force;
+    }
+    c.num_planes = planes;
+    c.held = false;
+    if (planes == 0) continue;
+    if (!refresh(c, colliders)) {
+      c.num_planes = 1;
+      refresh(c, colliders);
+    }
+    kept.push_back(c);
+  }
+  nodes_.swap(kept);
+  // New contacts on the predicted path.
+  const int n = pins.numNodes();
+  reindex(n);
+  for (int i = 0; i < n; ++i) {
+    if (pins.isEliminated(i)) continue;
+    const Vec3 p0 = x0.segment<3>(3 * i);
+    const Vec3 p1 = p0 + h * v0.segment<3>(3 * i) + h * h * gravity;
+    for (size_t k = 0; k < all.size(); ++k) {
+      const int id = static_cast<int>(k);
+      if (touches(slot_[i], id)) continue;
+      const auto hit = firstContact(all[k], colliders.start[k], colliders.end[k], p0, p1,
+                                    thickness, kPenetrationTolerance);
+      if (!hit) continue;
+      const int slot = slot_[i] >= 0 ? slot_[i] : addNode(i, all[k].friction() > 0.0);
+      if (!addPlane(nodes_[slot], id, hit->local, colliders)) {
+        // No room on the prediction: keep the first plane, update() decides.
+        failure_.clear();
+      }
+    }
+  }
+}
+
+void ContactSet::constrain(ConstraintFilter& filter) const {
+  for (const NodeContact& c : nodes_) {
+    filter.project(c.node, c.sticking ? Mat3::Zero() : c.tangent);
+  }
+}
+
+Vec3 ContactSet::prescribed(size_t k, const VecX& ax, double bh) const {
+  const NodeContact& c = nodes_[k];
+  const Vec3 a = ax.segment<3>(3 * c.node);
+  const Plane& p = c.plane[0];
+  const double t0 = (p.offset - p.normal.dot(a)) / bh;  // normal speed to reach the plane
+  Vec3 w;
+  if (c.num_planes == 1) {
+    w = t0 * p.normal;
+  } else {
+    const Plane& q = c.plane[1];
+    const double t1 = (q.offset - q.normal.dot(a)) / bh;
+    const double g = p.normal.dot(q.normal);
+    const double det = 1.0 - g * g;
+    w = ((t0 - g * t1) / det) * p.normal + ((t1 - g * t0) / det) * q.normal;
+  }
+  if (c.sticking) w += c.tangent * c.surface_velocity;
+  return w;
+}
+
+void ContactSet::prescribe(const VecX& ax, double bh, VecX& v1) const {
+  for (size_t k = 0; k < nodes_.size(); ++k) {
+    const NodeContact& c = nodes_[k];
+    const Vec3 w = prescribed(k, ax, bh);
+    Vec3 v = v1.segment<3>(3 * c.node);
+    v1.segment<3>(3 * c.node) = (c.sticking ? Vec3::Zero() : Vec3(c.tangent * v)) + w;
+  }
+}
+
+bool ContactSet::prescribeChange(const VecX& ax, double bh, const VecX& v0, VecX& c) const {
+  bool any = false;
+  for (size_t k = 0; k < nodes_.size(); ++k) {
+    const NodeContact& n = nodes_[k];
+    const Vec3 v = v0.segment<3>(3 * n.node);
+    const Vec3 change = prescribed(k, ax, bh) - (n.sticking ? v : Vec3(v - n.tangent * v));
+    c.segment<3>(3 * n.node) = change;
+    any = any || change.squaredNorm() > 0.0;
+  }
+  return any;
+}
+
+void ContactSet::addFriction(VecX& f, double scale) const {
+  for (const NodeContact& c : nodes_) {
+    if (!c.sticking && c.friction > 0.0) {
+      f.segment<3>(3 * c.node) -= (scale * c.friction) * c.slip;
+    }
+  }
+}
+
+double ContactSet::frictionPower(const VecX& v) const {
+  double power = 0.0;
+  for (const NodeContact& c : nodes_) {
+    if (!c.sticking && c.friction > 0.0) {
+      power -= c.friction * c.slip.dot(v.segment<3>(3 * c.node));
+    }
+  }
+  return power;
+}
+
+ContactCheck ContactSet::update(const CollidersOverStep& colliders, const ConstraintFilter& pins,
+                                const std::vector<double>& mass, const VecX& x0,
+                                const VecX& x1, const VecX& v1, const VecX& reaction,
+                                double bh) {
+  (void)mass;
+  failure_.clear();
+  bool changed = false;
+  const auto& all = *colliders.colliders;
+  const double thickness = colliders.thickness;
+
+  // Coulomb's law on every contact: push only, stick inside the cone.
+  for (size_t k = 0; k < nodes_.size();) {
+    NodeContact& c = nodes_[k];
+    const Vec3 force = reaction.segment<3>(3 * c.node) / bh;
+    double lambda[kMaxPlanes] = {0.0, 0.0};
+    if (c.num_planes == 1) {
+      lambda[0] = c.plane[0].normal.dot(force);
+    } else {
+      const Vec3& n0 = c.plane[0].normal;
+      const Vec3& n1 = c.plane[1].normal;
+      const double g = n0.dot(n1), det = 1.0 - g * g;
+      const double f0 = n0.dot(force), f1 = n1.dot(force);
+      lambda[0] = (f0 - g * f1) / det;
+      lambda[1] = (f1 - g * f0) / det;
+    }
+    int weakest = 0;
+    for (int q = 0; q < c.num_planes; ++q) {
+      c.plane[q].normal_force = lambda[q];
+      if (lambda[q] < lambda[weakest]) weakest = q;
+    }
+    const double pull_tolerance = 1e-9 * force.norm();
+    if (!c.held && lambda[weakest] < -pull_tolerance) {  // adhesion: let go
+      changed = true;
+      released_.push_back(c.node);
+      if (c.num_planes == 1) {
+        nodes_.erase(nodes_.begin() + static_cast<long>(k));
+        reindex(static_cast<int>(slot_.size()));
+        continue;
+      }
+      c.plane[weakest] = c.plane[1 - weakest];
+      c.num_planes = 1;
+      refresh(c, colliders);
+      ++k;
+      continue;
+    }
+    double cap = 0.0;
+    for (int q = 0; q < c.num_planes; ++q) {
+      cap += all[c.plane[q].collider].friction() * std::max(lambda[q], 0.0);
+    }
+    const Vec3 tangential = c.tangent * force;
+    if (c.sticking) {
+      const double needed = tangential.norm();
+      if (needed > cap * (1.0 + 1e-9)) {  // outside the cone: slide
+        c.sticking = false;
+        c.slip = -tangential / needed;
+        c.friction = cap;
+        changed = true;
+      }
+    } else if (cap > 0.0 || c.friction > 0.0) {
+      const Vec3 slip = c.tangent * (v1.segment<3>(3 * c.node) - c.surface_velocity);
+      const double speed = slip.norm();
+      if (cap > 0.0 && !(slip.dot(c.slip) > 0.0)) {  // friction would reverse it: stick
+        c.sticking = true;
+        changed = true;
+      } else {
+        const Vec3 direction = speed > 0.0 ? Vec3(slip / speed) : c.slip;
+        if (std::abs(cap - c.friction) > kFrictionLag * std::max(cap, c.friction) ||
+            (direction - c.slip).norm() > kFrictionLag) {
+          changed = true;
+        }
+        c.friction = cap;
+        c.slip = direction;
+      }
+    }
+    ++k;
+  }
+
+  // Every node against every collider: the swept path for new contacts, the
+  // end position for the penetration measure.
+  max_penetration_ = 0.0;
+  const int n = pins.numNodes();
+  for (int i = 0; i < n; ++i) {
+    const Vec3 p0 = x0.segment<3>(3 * i), p1 = x1.segment<3>(3 * i);
+    for (size_t k = 0; k < all.size(); ++k) {
+      const double depth = thickness - all[k].closest(p1, colliders.end[k]).distance;
+      max_penetration_ = std::max(max_penetration_, depth);
+      if (pins.isEliminated(i)) continue;
+      const bool own = touches(slot_[i], static_cast<int>(k));
+      // A node on a contact plane is outside that (convex) collider.
+      if (own && depth <= kPenetrationTolerance) continue;
+      std::optional<SweptHit> hit;
+      if (own) {
+        hit = SweptHit{1.0, all[k].closestLocal(colliders.end[k].toLocal(p1))};
+      } else {
+        hit = firstContact(all[k], colliders.start[k], colliders.end[k], p0, p1, thickness,
+                           kPenetrationTolerance);
+      }
+      if (!hit) continue;
+      const int s = slot_[i] >= 0 ? slot_[i] : addNode(i, all[k].friction() > 0.0);
+      NodeContact& c = nodes_[s];
+      if (std::find(released_.begin(), released_.end(), i) != released_.end()) c.held = true;
+      if (own) {  // re-linearise its own plane where it ended
+        for (int q = 0; q < c.num_planes; ++q) {
+          if (c.plane[q].collider == static_cast<int>(k)) {
+            setPlane(c.plane[q], static_cast<int>(k), hit->local, colliders, h_);
+          }
+        }
+        refresh(c, colliders);
+      } else if (!addPlane(c, static_cast<int>(k), hit->local, colliders)) {
+        return ContactCheck::Failed;
+      }
+      changed = true;
+    }
+  }
+  return changed ? ContactCheck::Changed : ContactCheck::Consistent;
+}
+
+double ContactSet::normalForce() const {
+  double sum = 0.0;
+  for (const NodeContact& c : nodes_) {
+    for (int q = 0; q < c.num_planes; ++q) sum += std::max(c.plane[q].normal_force, 0.0);
+  }
+  return sum;
+}
+
+double ContactSet::work(const VecX& x0, const VecX& x1, const VecX& reaction, double bh) const {
+  double w = 0.0;
+  for (const NodeContact& c : nodes_) {
+    const int i = c.node;
+    w += reaction.segment<3>(3 * i).dot(x1.segment<3>(3 * i) - x0.segment<3>(3 * i)) / bh;
+  }
+  return w;
+}
+
+}  // namespace cloth_sim
