@@ -20,6 +20,7 @@
 
 #include "cloth_sim/collider.hpp"
 #include "cloth_sim/constraint_filter.hpp"
+#include "cloth_sim/linear_solver.hpp"
 #include "cloth_sim/types.hpp"
 
 namespace cloth_sim {
@@ -39,13 +40,23 @@ class ContactSet {
  public:
   /// Contact passes a step may take before it is reported as failed.
   static constexpr int kMaxPasses = 25;
-  /// A node's friction force may lag the normal force of the same step by
-  /// this fraction (and its direction by this many radians) before the step
-  /// is solved again.
-  static constexpr double kFrictionLag = 1e-3;
+  /// A node's friction force may lag mu times the normal force of the same
+  /// step by this fraction before the step is solved again ...
+  static constexpr double kFrictionLag = 1e-2;
+  /// ... and a lagged direction (implicit_euler) turn by this many radians.
+  static constexpr double kDirectionLag = 1e-3;
+  /// Passes that may be spent on the friction lag alone; after them a lag
+  /// is accepted (as IPC's lagged friction does), while a contact set that
+  /// still changes (new contacts, releases, stick/slip) keeps the step going.
+  static constexpr int kFrictionPasses = 3;
   /// A node ends a step at least thickness - kPenetrationTolerance from every
   /// collider (m); deeper counts as a new contact.
   static constexpr double kPenetrationTolerance = 1e-10;
+  /// The friction Jacobian's cap / |s| is taken at |s| no less than this (m/s).
+  static constexpr double kStopSpeed = 1e-4;
+  /// A lagged friction direction that would move its node by less than this
+  /// over the step (m) counts as settled.
+  static constexpr double kSlipTolerance = 1e-9;
 
   /// Drops every contact (a reset).
   void clear() {
@@ -69,11 +80,19 @@ class ContactSet {
   /// The same as a velocity change from v0: c = w - (I - S) v0 on the
   /// contact nodes (other entries untouched). Returns whether any is nonzero.
   bool prescribeChange(const VecX& ax, double bh, const VecX& v0, VecX& c) const;
-  /// f += scale * friction on the sliding nodes (lagged normal force, against
-  /// the slip).
-  void addFriction(VecX& f, double scale = 1.0) const;
-  /// Sum over the sliding nodes of friction . v (the friction's power).
-  double frictionPower(const VecX& v) const;
+  /// f += scale * friction on the sliding nodes at velocity v: cap = mu times
+  /// the lagged normal force against the last pass's slip s0, linearised in
+  /// how it turns: -cap s0^ - cap / |s0| P (v - v_surface), P = T - s0^ s0^T.
+  /// The turn term lets the solve see the direction follow the slip (a
+  /// Newton step on it rather than a fixed-point iteration, which crawls
+  /// when the friction is large against the mass); without a known slip
+  /// speed (a new slide) it is left out.
+  void addFriction(VecX& f, double scale, const VecX& v) const;
+  /// A += scale * cap / |s0| P: minus that force's derivative in v.
+  void addFrictionJacobian(SystemMatrix& A, double scale) const;
+  /// The potential whose gradient in v is minus that force:
+  /// sum of cap s0^.(v - v_s) + cap / (2 |s0|) |P (v - v_s)|^2.
+  double frictionPotential(const VecX& v) const;
 
   /// Checks a solved step. `reaction` is b h times the contact force on each
   /// node: M (v1 - av) - b h f(x1, v1), friction left out. Updates normal
@@ -113,8 +132,10 @@ class ContactSet {
     Plane plane[kMaxPlanes];
     bool sticking = true;
     Vec3 slip = Vec3::Zero();   ///< unit slip direction (sliding)
+    double slip_speed = 0.0;    ///< |slip| at the last check (0: not known)
     double friction = 0.0;      ///< friction force magnitude used in the solve (N)
     bool held = false;          ///< released once this step and back: kept
+    int flips = 0;              ///< stick/slip switches this step
     // derived by refresh():
     Mat3 tangent = Mat3::Identity();  ///< projector on the tangent space
     Vec3 surface_velocity = Vec3::Zero();
@@ -131,6 +152,8 @@ class ContactSet {
   bool addPlane(NodeContact& c, int collider, const SurfacePoint& local,
                 const CollidersOverStep& colliders);
   void reindex(int num_nodes);
+  /// cap / |s0| of a sliding node (0 while its slip speed is not known).
+  static double turnStiffness(const NodeContact& c);
   /// Appends a node with no planes yet; returns its slot.
   int addNode(int node, bool sticking);
   /// Whether the node in `slot` (-1: none) has a plane of this collider.
@@ -139,6 +162,7 @@ class ContactSet {
   std::vector<NodeContact> nodes_;
   std::vector<int> slot_;  ///< per node: index in nodes_, -1 if not in contact
   std::vector<int> released_;  ///< nodes released this step (cycling guard)
+  int passes_ = 0;             ///< updates this step
   double h_ = 0.0;
   double max_penetration_ = 0.0;
   std::string failure_;

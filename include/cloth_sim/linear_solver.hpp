@@ -43,6 +43,13 @@ class SystemMatrix {
     c.u[2] = u[2];
     full_diag_valid_ = false;
   }
+  /// Adds a symmetric block to node i's diagonal (a contact's friction
+  /// Jacobian): couplings beyond the spring list, kept until reset().
+  void addNodeBlock(int node, const Mat3& block) {
+    node_blocks_.emplace_back(node, SymBlock::from(block));
+    full_diag_valid_ = false;
+  }
+  const std::vector<std::pair<int, SymBlock>>& nodeBlocks() const { return node_blocks_; }
   /// Node block without the couplings: nodeScale(i) * I.
   double nodeScale(int node) const { return node_scale_[node]; }
   Mat3 diag(int node) const { return node_scale_[node] * Mat3::Identity(); }
@@ -73,6 +80,7 @@ class SystemMatrix {
   };
   std::vector<double> node_scale_;  ///< node block = node_scale_ * I
   std::vector<Coupling> coupling_;
+  std::vector<std::pair<int, SymBlock>> node_blocks_;  ///< extra node blocks (addNodeBlock)
   mutable std::vector<SymBlock> full_diag_;
   mutable bool full_diag_valid_ = false;
 };

@@ -203,6 +203,9 @@ struct RunStats {
   long substeps = 0;
   long rejected_steps = 0;
   int max_halvings = 0;
+  int contacts = 0;                   ///< at the final step
+  double contact_normal_force = 0.0;  ///< at the final step, N
+  long contact_passes = 0;
   std::optional<std::string> failure;
 
   void add(const cloth_sim::StepStats& s) {
@@ -215,6 +218,9 @@ struct RunStats {
     substeps += s.substeps;
     rejected_steps += s.rejected;
     max_halvings = std::max(max_halvings, s.halvings);
+    contacts = s.contacts;
+    contact_normal_force = s.contact_normal_force;
+    contact_passes += s.contact_passes;
   }
   double perStep(double total) const { return steps > 0 ? total / steps : 0.0; }
 };
@@ -241,6 +247,12 @@ bool writeStats(const std::string& path, const RunStats& r, const cloth_sim::Sim
   std::fprintf(f, "  \"substeps\": %ld,\n", r.substeps);
   std::fprintf(f, "  \"rejected_steps\": %ld,\n", r.rejected_steps);
   std::fprintf(f, "  \"max_halvings\": %d,\n", r.max_halvings);
+  // Contact: zeros without colliders.
+  std::fprintf(f, "  \"contacts\": %d,\n", r.contacts);
+  std::fprintf(f, "  \"contact_normal_force\": %s,\n", jsonNumber(r.contact_normal_force).c_str());
+  std::fprintf(f, "  \"max_penetration\": %s,\n", jsonNumber(sim.maxPenetration()).c_str());
+  std::fprintf(f, "  \"contact_passes_mean\": %s,\n",
+               jsonNumber(r.perStep(static_cast<double>(r.contact_passes))).c_str());
   std::fprintf(f, "  \"failure\": %s,\n", r.failure ? jsonString(*r.failure).c_str() : "null");
   std::fprintf(f, "  \"method\": %s,\n", jsonString(cloth_sim::toString(scene.solver.method)).c_str());
   std::fprintf(f, "  \"dt\": %s,\n", jsonNumber(scene.solver.dt).c_str());

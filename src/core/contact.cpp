@@ -116,6 +116,7 @@ bool ContactSet::addPlane(NodeContact& c, int collider, const SurfacePoint& loca
 void ContactSet::begin(const CollidersOverStep& colliders, const ConstraintFilter& pins,
                        const VecX& x0, const VecX& v0, const Vec3& gravity, double h) {
   h_ = h;
+  passes_ = 0;
   released_.clear();
   failure_.clear();
   const auto& all = *colliders.colliders;
@@ -138,6 +139,7 @@ void ContactSet::begin(const CollidersOverStep& colliders, const ConstraintFilte
     }
     c.num_planes = planes;
     c.held = false;
+    c.flips = 0;
     if (planes == 0) continue;
     if (!refresh(c, colliders)) {
       c.num_planes = 1;
@@ -214,22 +216,49 @@ bool ContactSet::prescribeChange(const VecX& ax, double bh, const VecX& v0, VecX
   return any;
 }
 
-void ContactSet::addFriction(VecX& f, double scale) const {
+namespace {
+
+/// Slip velocity of a node in the tangent space.
+Vec3 slipOf(const Mat3& tangent, const Vec3& v, const Vec3& surface) {
+  return tangent * (v - surface);
+}
+
+}  // namespace
+
+double ContactSet::turnStiffness(const NodeContact& c) {
+  return c.slip_speed > 0.0 ? c.friction / std::max(c.slip_speed, kStopSpeed) : 0.0;
+}
+
+void ContactSet::addFriction(VecX& f, double scale, const VecX& v) const {
   for (const NodeContact& c : nodes_) {
-    if (!c.sticking && c.friction > 0.0) {
-      f.segment<3>(3 * c.node) -= (scale * c.friction) * c.slip;
+    if (c.sticking || c.friction <= 0.0) continue;
+    Vec3 force = -c.friction * c.slip;
+    const double k = turnStiffness(c);
+    if (k > 0.0) {
+      const Vec3 s = slipOf(c.tangent, v.segment<3>(3 * c.node), c.surface_velocity);
+      force -= k * (s - c.slip * c.slip.dot(s));
     }
+    f.segment<3>(3 * c.node) += scale * force;
   }
 }
 
-double ContactSet::frictionPower(const VecX& v) const {
-  double power = 0.0;
+void ContactSet::addFrictionJacobian(SystemMatrix& A, double scale) const {
   for (const NodeContact& c : nodes_) {
-    if (!c.sticking && c.friction > 0.0) {
-      power -= c.friction * c.slip.dot(v.segment<3>(3 * c.node));
-    }
+    if (c.sticking || c.friction <= 0.0) continue;
+    const double k = turnStiffness(c);
+    if (k > 0.0) A.addNodeBlock(c.node, (scale * k) * (c.tangent - c.slip * c.slip.transpose()));
   }
-  return power;
+}
+
+double ContactSet::frictionPotential(const VecX& v) const {
+  double sum = 0.0;
+  for (const NodeContact& c : nodes_) {
+    if (c.sticking || c.friction <= 0.0) continue;
+    const Vec3 s = slipOf(c.tangent, v.segment<3>(3 * c.node), c.surface_velocity);
+    const Vec3 turn = s - c.slip * c.slip.dot(s);
+    sum += c.friction * c.slip.dot(s) + 0.5 * turnStiffness(c) * turn.squaredNorm();
+  }
+  return sum;
 }
 
 ContactCheck ContactSet::update(const CollidersOverStep& colliders, const ConstraintFilter& pins,
@@ -239,6 +268,7 @@ ContactCheck ContactSet::update(const CollidersOverStep& colliders, const Constr
   (void)mass;
   failure_.clear();
   bool changed = false;
+  const bool refine_friction = ++passes_ <= kFrictionPasses;
   const auto& all = *colliders.colliders;
   const double thickness = colliders.thickness;
 
@@ -263,6 +293,29 @@ ContactCheck ContactSet::update(const CollidersOverStep& colliders, const Constr
       if (lambda[q] < lambda[weakest]) weakest = q;
     }
     const double pull_tolerance = 1e-9 * force.norm();
+    double cap = 0.0;
+    for (int q = 0; q < c.num_planes; ++q) {
+      cap += all[c.plane[q].collider].friction() * std::max(lambda[q], 0.0);
+    }
+    const Vec3 tangential = c.tangent * force;
+    const double needed = tangential.norm();
+    // A sticking node outside the friction cone slides first: its normal
+    // force while held in place says little about the sliding one (a node
+    // pulled sideways off a curved surface pulls on a sticking contact, not
+    // on a sliding one). Only a sliding node that pulls lets go.
+    // A node on the cone's boundary can flip between stick and slip at every
+    // pass (sliding, friction stops it; sticking, it needs a hair more than
+    // mu f_n): after two flips in a step it stays stuck for the step.
+    if (c.sticking && needed > cap * (1.0 + 1e-9) && c.flips < 2) {
+      c.sticking = false;
+      ++c.flips;
+      c.slip = -tangential / needed;
+      c.slip_speed = 0.0;
+      c.friction = cap;
+      changed = true;
+      ++k;
+      continue;
+    }
     if (!c.held && lambda[weakest] < -pull_tolerance) {  // adhesion: let go
       changed = true;
       released_.push_back(c.node);
@@ -277,33 +330,33 @@ ContactCheck ContactSet::update(const CollidersOverStep& colliders, const Constr
       ++k;
       continue;
     }
-    double cap = 0.0;
-    for (int q = 0; q < c.num_planes; ++q) {
-      cap += all[c.plane[q].collider].friction() * std::max(lambda[q], 0.0);
-    }
-    const Vec3 tangential = c.tangent * force;
-    if (c.sticking) {
-      const double needed = tangential.norm();
-      if (needed > cap * (1.0 + 1e-9)) {  // outside the cone: slide
-        c.sticking = false;
-        c.slip = -tangential / needed;
-        c.friction = cap;
-        changed = true;
-      }
-    } else if (cap > 0.0 || c.friction > 0.0) {
-      const Vec3 slip = c.tangent * (v1.segment<3>(3 * c.node) - c.surface_velocity);
+    if (!c.sticking && (cap > 0.0 || c.friction > 0.0)) {
+      const Vec3 slip = slipOf(c.tangent, v1.segment<3>(3 * c.node), c.surface_velocity);
       const double speed = slip.norm();
-      if (cap > 0.0 && !(slip.dot(c.slip) > 0.0)) {  // friction would reverse it: stick
+      // Friction would reverse the slip: stick. (A slow slip the same way is
+      // a slide: sticking it would need more than the cone allows.) The
+      // first slide after sticking has no slip to reverse yet: its direction
+      // was only guessed from the sticking force.
+      if (cap > 0.0 && c.slip_speed > 0.0 && !(slip.dot(c.slip) > 0.0)) {
         c.sticking = true;
+        ++c.flips;
         changed = true;
       } else {
         const Vec3 direction = speed > 0.0 ? Vec3(slip / speed) : c.slip;
-        if (std::abs(cap - c.friction) > kFrictionLag * std::max(cap, c.friction) ||
-            (direction - c.slip).norm() > kFrictionLag) {
+        // (A turn that moves the node by under kSlipTolerance over the step
+        // does not count: a slow node's direction converges slowly.)
+        const double turn = (direction - c.slip).norm();
+        const bool turned = turn > kDirectionLag &&
+                            turn * speed * h_ > kSlipTolerance;
+        const bool lagging = std::abs(cap - c.friction) > kFrictionLag * std::max(cap, c.friction);
+        if (refine_friction && (lagging || turned)) {
           changed = true;
         }
-        c.friction = cap;
+        // Averaged after the first update: the normal force of the whole
+        // cloth can swing between passes when every friction follows it.
+        c.friction = lagging && c.friction > 0.0 && cap > 0.0 ? 0.5 * (cap + c.friction) : cap;
         c.slip = direction;
+        c.slip_speed = speed;
       }
     }
     ++k;

@@ -13,6 +13,7 @@ void SystemMatrix::resize(int num_nodes, int num_springs) {
 
 void SystemMatrix::reset(const std::vector<double>& mass, double extra_diagonal) {
   for (size_t i = 0; i < node_scale_.size(); ++i) node_scale_[i] = mass[i] + extra_diagonal;
+  node_blocks_.clear();
   full_diag_valid_ = false;
 }
 
@@ -28,6 +29,7 @@ const std::vector<SymBlock>& SystemMatrix::fullDiagonal() const {
     full_diag_[coupling_[k].i].addScaled(1.0, S);
     full_diag_[coupling_[k].j].addScaled(1.0, S);
   }
+  for (const auto& [node, block] : node_blocks_) full_diag_[node].addScaled(1.0, block);
   full_diag_valid_ = true;
   return full_diag_;
 }
@@ -64,6 +66,9 @@ void SystemMatrix::multiplyAll(const VecX& x_in, VecX& y_out) const {
     yj[0] -= t0;
     yj[1] -= t1;
     yj[2] -= t2;
+  }
+  for (const auto& [node, block] : node_blocks_) {
+    y_out.segment<3>(3 * node) += block * Vec3(x_in.segment<3>(3 * node));
   }
 }
 

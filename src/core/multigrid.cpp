@@ -285,6 +285,9 @@ void MultigridPreconditioner::fillFinest(const SystemMatrix& A, const std::vecto
     const double m = A.nodeScale(i);
     level.node_block[i] = level.free[i] ? SymBlock{{m, m, m, 0.0, 0.0, 0.0}} : identityBlock();
   }
+  for (const auto& [node, block] : A.nodeBlocks()) {
+    if (level.free[node]) level.node_block[node].addScaled(1.0, block);
+  }
   std::fill(level.lower_block.begin(), level.lower_block.end(), SymBlock());
   const std::vector<char>& free = level.free;
   for (size_t k = 0; k < springs.size(); ++k) {

@@ -151,7 +151,8 @@ StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v)
   if (contact_on_) {
     rhs0_ = rhs_;  // without friction: the contact reaction is measured against it
     pins_move = contact_.prescribeChange(x, h, v, pinned_dv_);
-    contact_.addFriction(rhs_, h);
+    contact_.addFriction(rhs_, h, v);  // at v0; its turn term in A acts on dv
+    contact_.addFrictionJacobian(A_, h);
   }
   for (size_t k = 0; k < pins_->nodes.size(); ++k) {
     const int p = pins_->nodes[k];
@@ -181,6 +182,9 @@ StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v)
   if (contact_on_) {  // reaction = A dv - rhs0: what the constraints supplied, times h
     A_.multiplyAll(dv_, g_);
     reaction_ = g_ - rhs0_;
+    for (const auto& [node, block] : A_.nodeBlocks()) {  // friction is not a reaction
+      reaction_.segment<3>(3 * node) -= block * Vec3(dv_.segment<3>(3 * node));
+    }
     bh_ = h;
   }
   dv_ -= pinned_dv_;  // the free part warm-starts the next solve
@@ -204,7 +208,7 @@ double Stepper::residualFromForces(const Model& model, double bh, const VecX& av
     g.segment<3>(3 * i) = model.mass[i] * (v1.segment<3>(3 * i) - av.segment<3>(3 * i)) -
                           bh * f.segment<3>(3 * i);
   }
-  if (contact_on_) contact_.addFriction(g, -bh);
+  if (contact_on_) contact_.addFriction(g, -bh, v1);
   filter_.apply(g);
   return g.norm();
 }
@@ -228,6 +232,7 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
   auto t0 = Clock::now();
   x = ax_ + bh * v1;
   assembleSystem(model, x, v1, bh, bh * bh, settings_.project_compression, A_, f_);
+  if (contact_on_) contact_.addFrictionJacobian(A_, bh);
   const double g0 = residualFromForces(model, bh, av_, v1, f_, g_);
   double g_norm = g0;
   stats.assembly_s += secondsSince(t0);
@@ -250,6 +255,7 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
     if (it > 0) {  // the first iterate was assembled above
       t0 = Clock::now();
       assembleSystem(model, x, v1, bh, bh * bh, settings_.project_compression, A_, f_);
+      if (contact_on_) contact_.addFrictionJacobian(A_, bh);
       stats.assembly_s += secondsSince(t0);
     }
     t0 = Clock::now();
@@ -348,7 +354,7 @@ double Stepper::incrementalPotential(const Model& model, double bh, const VecX& 
   for (int i = 0; i < model.numNodes(); ++i) {
     phi += 0.5 * model.mass[i] * (v1.segment<3>(3 * i) - av.segment<3>(3 * i)).squaredNorm();
   }
-  if (contact_on_) phi -= bh * contact_.frictionPower(v1);  // lagged friction: a linear potential
+  if (contact_on_) phi += bh * contact_.frictionPotential(v1);  // friction's dissipation
   return phi + bh * dissipation;
 }
 
