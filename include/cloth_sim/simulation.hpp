@@ -32,6 +32,16 @@ struct PinTarget {
   double velocity_until = 0.0;   ///< ... until this simulated time
 };
 
+/// The settings that may change while the simulation runs (the node's live
+/// tuning): each spring group's stiffness and damping, gravity, air drag and
+/// the solver settings. `springs[t].enabled` says whether the group is modelled.
+struct Tuning {
+  std::array<SpringGroupParams, kNumSpringTypes> springs{};
+  Vec3 gravity = Vec3::Zero();
+  double air_drag = 0.0;
+  Scene::Solver solver;
+};
+
 class Simulation {
  public:
   /// Validates the scene (throws SceneError) and sets up the initial state.
@@ -76,7 +86,16 @@ class Simulation {
   /// steps until then sweep that motion, and friction sees it). The jump to
   /// `pose` itself is not swept: a node it lands inside is pushed out.
   Status setColliderPose(int index, const Pose& pose, const Vec3& velocity = Vec3::Zero());
-  /// Back to the initial state, pins, colliders and stiffness of the scene.
+  /// What the simulation runs with now (stiffness changes and retune included).
+  Tuning tuning() const;
+  /// Changes the tunable settings between steps. Validated as a scene file is
+  /// (validateScene on the scene with these fields: the message names the
+  /// field, e.g. "springs.stretch.stiffness: must be > 0, got -3"); a spring
+  /// group stays as the scene modelled it (present with stiffness > 0, or
+  /// absent). A refused change changes nothing. Stiffness and gravity changes
+  /// count as work done on the cloth; a solver change restarts the stepper.
+  Status retune(const Tuning& tuning);
+  /// Back to the initial state, pins, colliders, stiffness and settings of the scene.
   void reset();
 
   bool isPinned(int node) const { return pins_.count(node) != 0; }
@@ -130,6 +149,7 @@ class Simulation {
   void accumulate(const StepStats& part, StepStats* total) const;
 
   Scene scene_;
+  Scene initial_scene_;  ///< as constructed: reset() undoes retune()
   Model model_;
   VecX x_, v_;
   VecX x_prev_, v_prev_;  ///< previous step, for bdf2

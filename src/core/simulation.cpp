@@ -53,10 +53,12 @@ Simulation::Simulation(const Scene& scene) : scene_(scene), stepper_(scene.solve
   validateScene(scene_);
   std::stable_sort(scene_.events.begin(), scene_.events.end(),
                    [](const SceneEvent& a, const SceneEvent& b) { return a.time < b.time; });
+  initial_scene_ = scene_;
   reset();
 }
 
 void Simulation::reset() {
+  scene_ = initial_scene_;
   model_ = buildModel(scene_);
   x_ = initialPositions(scene_, model_.rest_positions);
   v_.resize(x_.size());
@@ -549,6 +551,73 @@ Status Simulation::setStiffness(const std::string& spring_type, double stiffness
   }
   measures_ = measureEnergy(model_, x_, v_);
   return Status::success("set " + spring_type + " stiffness to " + fmt(stiffness));
+}
+
+Tuning Simulation::tuning() const {
+  Tuning t;
+  for (int k = 0; k < kNumSpringTypes; ++k) {
+    const SpringGroup& g = model_.groups[k];
+    t.springs[k] = SpringGroupParams{g.present, g.stiffness, g.damping};
+  }
+  t.gravity = model_.gravity;
+  t.air_drag = model_.air_drag;
+  t.solver = scene_.solver;
+  return t;
+}
+
+namespace {
+bool sameSolver(const Scene::Solver& a, const Scene::Solver& b) {
+  return a.method == b.method && a.dt == b.dt && a.tolerance == b.tolerance &&
+         a.max_iterations == b.max_iterations && a.preconditioner == b.preconditioner &&
+         a.multigrid_reuse == b.multigrid_reuse &&
+         a.project_compression == b.project_compression &&
+         a.newton_tolerance == b.newton_tolerance &&
+         a.newton_max_iterations == b.newton_max_iterations &&
+         a.max_halvings == b.max_halvings && a.recovery == b.recovery;
+}
+}  // namespace
+
+Status Simulation::retune(const Tuning& tuning) {
+  Scene candidate = scene_;
+  candidate.springs = tuning.springs;
+  candidate.gravity = tuning.gravity;
+  candidate.air_drag = tuning.air_drag;
+  candidate.solver = tuning.solver;
+  try {
+    validateScene(candidate);  // the scene file's checks, messages naming the field
+  } catch (const SceneError& e) {
+    return Status::error(e.what());
+  }
+  for (int k = 0; k < kNumSpringTypes; ++k) {
+    const bool present = model_.groups[k].present;
+    if (tuning.springs[k].enabled != present) {
+      const std::string name = toString(static_cast<SpringType>(k));
+      return Status::error("springs." + name + (present ? ".stiffness: must stay > 0" : "") +
+                           ": the scene " + (present ? "models" : "does not model") + " the " +
+                           name + " group, and only a scene decides what is modelled");
+    }
+  }
+  for (int k = 0; k < kNumSpringTypes; ++k) {
+    const SpringGroup& g = model_.groups[k];
+    const SpringGroupParams& want = tuning.springs[k];
+    if (g.present && (want.stiffness != g.stiffness || want.damping != g.damping)) {
+      setStiffness(toString(static_cast<SpringType>(k)), want.stiffness, want.damping);
+    }
+  }
+  // Changing g changes the potential energy at the same positions: work done on the cloth.
+  const double potential_before = gravityEnergy(model_, x_);
+  model_.gravity = tuning.gravity;
+  model_.has_gravity = tuning.gravity.squaredNorm() > 0.0;
+  model_.air_drag = tuning.air_drag;
+  work_in_total_ += gravityEnergy(model_, x_) - potential_before;
+  scene_.gravity = tuning.gravity;
+  scene_.air_drag = tuning.air_drag;
+  if (!sameSolver(scene_.solver, tuning.solver)) {
+    scene_.solver = tuning.solver;
+    stepper_ = Stepper(scene_.solver);
+  }
+  measures_ = measureEnergy(model_, x_, v_);
+  return Status::success();
 }
 
 // --------------------------------------------------------- measurements ----

@@ -53,15 +53,14 @@ int ClothNode::stepsPerTick(double tick_s, double dt) {
 }
 
 ClothNode::ClothNode(ros::NodeHandle nh, ros::NodeHandle private_nh, const NodeParams& params,
-                     const cloth_sim::Scene& scene)
+                     const cloth_sim::Scene& scene, const std::string& scene_yaml)
     : params_(params),
       sim_(scene),
       tick_s_(1.0 / params.rate),
-      steps_per_tick_(stepsPerTick(tick_s_, scene.solver.dt)),
-      step_h_(tick_s_ / steps_per_tick_),
       tf_listener_(tf_buffer_, nh),
       frame_pins_(tf_buffer_, params.frame_id, params.tf_timeout),
       updater_(nh, private_nh) {
+  divideTick();
   // Start-up tf pins need their frames: wait for each, then attach.
   for (size_t k = 0; k < params_.tf_pins.size(); ++k) {
     const TfPinParam& pin = params_.tf_pins[k];
@@ -95,6 +94,19 @@ ClothNode::ClothNode(ros::NodeHandle nh, ros::NodeHandle private_nh, const NodeP
   services_.push_back(
       private_nh.advertiseService("set_stiffness", &ClothNode::onSetStiffness, this));
   services_.push_back(private_nh.advertiseService("reset", &ClothNode::onReset, this));
+  services_.push_back(private_nh.advertiseService("grasp", &ClothNode::onGrasp, this));
+  services_.push_back(
+      private_nh.advertiseService("release_grasp", &ClothNode::onReleaseGrasp, this));
+
+  DragHandles::Options drag;
+  drag.frame_id = params_.frame_id;
+  drag.pick_distance = params_.drag_pick_distance;
+  drag.radius = params_.drag_radius;
+  drag_ = std::make_unique<DragHandles>(private_nh.resolveName("drag"), drag, &sim_, tf_buffer_,
+                                        [this](int node) { return !frame_pins_.attached(node); });
+  clicked_sub_ = nh.subscribe("clicked_point", 5, &ClothNode::onClickedPoint, this);
+  tuning_ = std::make_unique<LiveTuning>(ros::NodeHandle(private_nh, "tuning"), &sim_, scene_yaml,
+                                         [this] { divideTick(); });
 
   updater_.setHardwareID("none");
   updater_.add("simulation", this, &ClothNode::diagnose);
@@ -118,15 +130,43 @@ ClothNode::ClothNode(ros::NodeHandle nh, ros::NodeHandle private_nh, const NodeP
 
 const cloth_sim::Model& ClothNode::model() const { return sim_.model(); }
 
+void ClothNode::divideTick() {
+  divided_dt_ = sim_.dt();
+  steps_per_tick_ = stepsPerTick(tick_s_, divided_dt_);
+  step_h_ = tick_s_ / steps_per_tick_;
+}
+
+void ClothNode::forgetNode(int node) {
+  frame_pins_.detach(node);
+  grasps_.forget(node);
+  if (drag_) drag_->forget(node);
+}
+
+void ClothNode::onClickedPoint(const geometry_msgs::PointStamped::ConstPtr& msg) {
+  std::string error;
+  const int node = drag_->addHandle(*msg, &error);
+  if (node < 0) {
+    ROS_WARN("clicked point: no drag handle: %s", error.c_str());
+  } else {
+    ROS_INFO("drag handle on node %d", node);
+  }
+}
+
 // ------------------------------------------------------------------ tick ----
 
 void ClothNode::onTick(const ros::SteadyTimerEvent& /*event*/) {
   const ros::SteadyTime start = ros::SteadyTime::now();
   const double sim_before = sim_.time();
 
-  for (const std::string& error : frame_pins_.update(&sim_, tick_s_)) {
-    ROS_WARN_THROTTLE(2.0, "tf pin: %s; its nodes hold their last position", error.c_str());
+  if (sim_.dt() != divided_dt_) divideTick();  // ~reset back to the scene's dt
+  const std::map<std::string, std::string> lost = frame_pins_.update(&sim_, tick_s_);
+  releaseLostGrasps(lost);
+  for (const auto& [frame, error] : lost) {
+    if (frame_pins_.hasFrame(frame)) {
+      ROS_WARN_THROTTLE(2.0, "tf pin: %s; its nodes hold their last position", error.c_str());
+    }
   }
+  drag_->update(tick_s_);
 
   TickStats tick;
   tick.dt = step_h_;
@@ -134,7 +174,11 @@ void ClothNode::onTick(const ros::SteadyTimerEvent& /*event*/) {
     tick.add(sim_.step(step_h_));
     if (!tick.ok) break;  // the core rolled back; the next tick tries again
   }
+  const ros::SteadyTime publish_start = ros::SteadyTime::now();
   publish(ros::Time::now(), tick);
+  const double publish_s = (ros::SteadyTime::now() - publish_start).toSec();
+  drag_->publishPoses();
+  tuning_->sync();
 
   const double busy = (ros::SteadyTime::now() - start).toSec();
   const bool overrun = busy > tick_s_;
@@ -144,6 +188,8 @@ void ClothNode::onTick(const ros::SteadyTimerEvent& /*event*/) {
   window_.busy_s += busy;
   window_.busy_max_s = std::max(window_.busy_max_s, busy);
   window_.step_s += tick.wall_time_s;
+  window_.publish_s += publish_s;
+  window_.publish_max_s = std::max(window_.publish_max_s, publish_s);
   window_.cg_iterations += tick.cg_iterations;
   window_.cg_max = std::max(window_.cg_max, tick.cg_iterations);
   window_.residual_max = std::max(window_.residual_max, tick.residual);
@@ -229,10 +275,9 @@ Status ClothNode::pinNodes(const std::vector<long>& indices, const std::vector<V
   const Status pinned = sim_.pin(nodes, targets);
   if (!pinned) return pinned;
   for (size_t k = 0; k < nodes.size(); ++k) {
+    forgetNode(nodes[k]);  // a new pin replaces whatever held the node
     if (attach) {
       frame_pins_.attach(nodes[k], frame, offsets[k], sim_.pins().at(nodes[k]).position);
-    } else {
-      frame_pins_.detach(nodes[k]);
     }
   }
   return Status::success("pinned " + std::to_string(nodes.size()) + " node(s)" +
@@ -272,6 +317,8 @@ bool ClothNode::onReleaseNodes(cloth_sim::ReleaseNodes::Request& req,
       const size_t count = sim_.pinnedNodes().size();
       sim_.releaseAll();
       frame_pins_.clear();
+      grasps_.clear();
+      drag_->clearDrags();
       status = Status::success("released all " + std::to_string(count) + " pinned node(s)");
     }
   } else if (req.indices.empty()) {
@@ -281,7 +328,7 @@ bool ClothNode::onReleaseNodes(cloth_sim::ReleaseNodes::Request& req,
     status = checkIndices(toLong(req.indices), sim_.numNodes(), &nodes);
     if (status) status = sim_.release(nodes);
     if (status) {
-      for (int node : nodes) frame_pins_.detach(node);
+      for (int node : nodes) forgetNode(node);
       status = Status::success("released " + std::to_string(nodes.size()) + " node(s)");
     }
   }
@@ -309,7 +356,10 @@ bool ClothNode::onSetStiffness(cloth_sim::SetStiffness::Request& req,
 bool ClothNode::onReset(std_srvs::Trigger::Request& /*req*/,
                         std_srvs::Trigger::Response& res) {
   sim_.reset();
-  frame_pins_.clear();  // attachments made by ~pin_nodes end here
+  frame_pins_.clear();  // attachments made by ~pin_nodes and ~grasp end here
+  grasps_.clear();
+  drag_->clearDrags();  // handles stay, on their nodes
+  divideTick();         // the scene's dt again
   const Status reattached = applyTfPinParams();  // grabs the nodes where they now are
   res.success = true;
   res.message = "reset to the initial state";
@@ -323,6 +373,8 @@ bool ClothNode::onReset(std_srvs::Trigger::Request& /*req*/,
   initial.max_strain = sim_.maxStrain();
   publish(ros::Time::now(), initial);  // show the initial state before the next step
   last_tick_ = initial;
+  drag_->publishPoses();
+  tuning_->sync();  // the scene's settings again
   return true;
 }
 
@@ -353,6 +405,8 @@ void ClothNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
   stat.add("overruns", w.overruns);
   stat.add("overruns total", overruns_total_);
   stat.addf("step time (ms per tick)", "%.3f", 1e3 * w.step_s / ticks);
+  stat.addf("publish time (ms per tick)", "%.3f", 1e3 * w.publish_s / ticks);
+  stat.addf("publish time max (ms)", "%.3f", 1e3 * w.publish_max_s);
   stat.addf("tick time max (ms)", "%.3f", 1e3 * w.busy_max_s);
   stat.add("steps per tick", steps_per_tick_);
   stat.addf("dt (s)", "%.17g", step_h_);
@@ -367,6 +421,8 @@ void ClothNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
   stat.add("failures total", failures_total_);
   stat.add("pinned nodes", sim_.pinnedNodes().size());
   stat.add("tf pins", frame_pins_.size());
+  stat.add("grasped nodes", grasps_.numNodes());
+  stat.add("drag handles", drag_->numHandles());
   for (int type = 0; type < cloth_sim::kNumSpringTypes; ++type) {
     const cloth_sim::SpringGroup& group = sim_.group(static_cast<cloth_sim::SpringType>(type));
     if (!group.present) continue;

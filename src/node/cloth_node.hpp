@@ -3,10 +3,12 @@
 // here. Single-threaded spinning makes every service act between steps.
 #pragma once
 
+#include <memory>
 #include <string>
 #include <vector>
 
 #include <diagnostic_updater/diagnostic_updater.h>
+#include <geometry_msgs/PointStamped.h>
 #include <ros/ros.h>
 #include <std_srvs/Trigger.h>
 #include <tf2_ros/buffer.h>
@@ -15,11 +17,16 @@
 
 #include "cloth_messages.hpp"
 #include "cloth_sim/ClothState.h"
+#include "cloth_sim/Grasp.h"
 #include "cloth_sim/PinNodes.h"
+#include "cloth_sim/ReleaseGrasp.h"
 #include "cloth_sim/ReleaseNodes.h"
 #include "cloth_sim/SetStiffness.h"
 #include "cloth_sim/simulation.hpp"
+#include "drag_handles.hpp"
 #include "frame_pins.hpp"
+#include "grasp.hpp"
+#include "live_tuning.hpp"
 #include "node_params.hpp"
 
 namespace cloth_sim_ros {
@@ -27,10 +34,11 @@ namespace cloth_sim_ros {
 class ClothNode {
  public:
   /// Builds the simulation, waits for the tf_pins frames (params.tf_wait),
-  /// advertises, and starts the timer. Throws cloth_sim::SceneError for a bad
-  /// scene and ParamError for bad tf_pins.
+  /// advertises, and starts the timer. `scene_yaml` is the scene's text (live
+  /// tuning re-parses it with overrides). Throws cloth_sim::SceneError for a
+  /// bad scene and ParamError for bad tf_pins.
   ClothNode(ros::NodeHandle nh, ros::NodeHandle private_nh, const NodeParams& params,
-            const cloth_sim::Scene& scene);
+            const cloth_sim::Scene& scene, const std::string& scene_yaml);
 
   /// Solver steps per tick and their size: n = ceil(tick / solver.dt), h = tick / n.
   static int stepsPerTick(double tick_s, double dt);
@@ -46,6 +54,8 @@ class ClothNode {
     double busy_s = 0.0;      ///< wall time of the ticks' work
     double busy_max_s = 0.0;
     double step_s = 0.0;      ///< wall time inside Simulation::step
+    double publish_s = 0.0;   ///< wall time of publish() (marker, strain, state)
+    double publish_max_s = 0.0;
     long cg_iterations = 0;
     int cg_max = 0;           ///< per tick
     double residual_max = 0.0;
@@ -64,6 +74,18 @@ class ClothNode {
   bool onSetStiffness(cloth_sim::SetStiffness::Request& req,
                       cloth_sim::SetStiffness::Response& res);
   bool onReset(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
+  // grasp.cpp's services
+  bool onGrasp(cloth_sim::Grasp::Request& req, cloth_sim::Grasp::Response& res);
+  bool onReleaseGrasp(cloth_sim::ReleaseGrasp::Request& req,
+                      cloth_sim::ReleaseGrasp::Response& res);
+  /// Grasps on lost frames let go (their nodes fall), with a warning.
+  void releaseLostGrasps(const std::map<std::string, std::string>& lost);
+  /// RViz's Publish Point on the cloth: a drag handle at the nearest node.
+  void onClickedPoint(const geometry_msgs::PointStamped::ConstPtr& msg);
+  /// A node pinned or released by a request: tf attachment, grasp and drag end.
+  void forgetNode(int node);
+  /// n steps of h per tick from the simulation's dt (again after a dt change).
+  void divideTick();
 
   /// Pins nodes, fixed or attached to `frame` (see PinNodes.srv). Validates
   /// everything first; changes nothing unless it succeeds.
@@ -77,12 +99,17 @@ class ClothNode {
   NodeParams params_;
   cloth_sim::Simulation sim_;
   double tick_s_;
-  int steps_per_tick_;
-  double step_h_;
+  int steps_per_tick_ = 1;
+  double step_h_ = 0.0;
+  double divided_dt_ = 0.0;  ///< the solver dt steps_per_tick_ was computed from
 
   tf2_ros::Buffer tf_buffer_;
   tf2_ros::TransformListener tf_listener_;
   FramePins frame_pins_;
+  Grasps grasps_;
+  std::unique_ptr<DragHandles> drag_;
+  std::unique_ptr<LiveTuning> tuning_;
+  ros::Subscriber clicked_sub_;
 
   ros::Publisher cloth_pub_, strain_pub_, state_pub_;
   std::vector<ros::ServiceServer> services_;

@@ -21,15 +21,15 @@ int main(int argc, char** argv) {
     if (!ros::param::get(ns, tree)) tree = XmlRpc::XmlRpcValue();  // nothing set: all defaults
     const cloth_sim_ros::NodeParams params = cloth_sim_ros::readNodeParams(tree);
     cloth_sim::Scene scene;
+    const std::string scene_yaml = cloth_sim_ros::sceneYaml(tree, cloth_sim_ros::nodeParamKeys());
     try {
-      scene = cloth_sim::parseScene(
-          cloth_sim_ros::sceneYaml(tree, cloth_sim_ros::nodeParamKeys()));
+      scene = cloth_sim::parseScene(scene_yaml);
     } catch (const cloth_sim::SceneError& e) {
       ROS_FATAL("bad scene parameter ~%s (scene parameters are read from %s)", e.what(),
                 ns.c_str());
       return 1;
     }
-    node = std::make_unique<cloth_sim_ros::ClothNode>(nh, private_nh, params, scene);
+    node = std::make_unique<cloth_sim_ros::ClothNode>(nh, private_nh, params, scene, scene_yaml);
   } catch (const cloth_sim_ros::ParamError& e) {
     ROS_FATAL("bad parameter ~%s", e.what());
     return 1;

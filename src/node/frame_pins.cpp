@@ -39,7 +39,15 @@ void FramePins::attach(int node, const std::string& frame, const cloth_sim::Vec3
   attachments_[node] = Attachment{frame, offset, target};
 }
 
-std::vector<std::string> FramePins::update(cloth_sim::Simulation* sim, double tick_s) {
+bool FramePins::hasFrame(const std::string& frame) const {
+  for (const auto& entry : attachments_) {
+    if (entry.second.frame == frame) return true;
+  }
+  return false;
+}
+
+std::map<std::string, std::string> FramePins::update(cloth_sim::Simulation* sim,
+                                                     double tick_s) {
   std::map<std::string, Eigen::Isometry3d> poses;  // one lookup per frame
   std::map<std::string, std::string> lost;
   for (auto it = attachments_.begin(); it != attachments_.end();) {
@@ -67,9 +75,7 @@ std::vector<std::string> FramePins::update(cloth_sim::Simulation* sim, double ti
     const cloth_sim::Vec3 velocity = (goal - a.target) / tick_s;
     if (sim->movePin(node, a.target, velocity, tick_s)) a.target = goal;
   }
-  std::vector<std::string> errors;
-  for (const auto& entry : lost) errors.push_back(entry.second);
-  return errors;
+  return lost;
 }
 
 }  // namespace cloth_sim_ros

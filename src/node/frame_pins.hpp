@@ -32,11 +32,15 @@ class FramePins {
   bool attached(int node) const { return attachments_.count(node) != 0; }
   size_t size() const { return attachments_.size(); }
 
+  /// True if some node is attached to `frame`.
+  bool hasFrame(const std::string& frame) const;
+
   /// Moves every attached pin toward its frame's latest pose: the target drifts
   /// from where it was to the new pose over the coming tick of `tick_s`
   /// seconds, so the node arrives there at the tick's end. Pins whose frame
-  /// is lost hold their last target. Returns the lookup errors of lost frames.
-  std::vector<std::string> update(cloth_sim::Simulation* sim, double tick_s);
+  /// is lost hold their last target. Returns the lost frames with the lookup
+  /// error of each.
+  std::map<std::string, std::string> update(cloth_sim::Simulation* sim, double tick_s);
 
  private:
   struct Attachment {

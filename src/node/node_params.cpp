@@ -101,9 +101,12 @@ TfPinParam readTfPin(const XmlRpcValue& v, const std::string& name) {
 }  // namespace
 
 const std::set<std::string>& nodeParamKeys() {
-  static const std::set<std::string> keys = {"rate",    "frame_id",   "color",
-                                             "publish_strain", "tf_pins", "tf_timeout",
-                                             "tf_wait", "diagnostic_period"};
+  // tuning and drag: the namespaces of the dynamic_reconfigure server and the
+  // interactive-marker server (their state, never scene schema).
+  static const std::set<std::string> keys = {
+      "rate",    "frame_id",          "color",      "publish_strain", "tf_pins",
+      "tf_timeout", "tf_wait",        "diagnostic_period", "drag_radius",
+      "drag_pick_distance", "tuning", "drag"};
   return keys;
 }
 
@@ -164,6 +167,16 @@ NodeParams readNodeParams(const XmlRpcValue& private_ns) {
   if (ns.hasMember("tf_wait")) {
     p.tf_wait = readNumber(ns["tf_wait"], "tf_wait", "must be a finite number >= 0 (s)",
                            [](double x) { return x >= 0.0; });
+  }
+  if (ns.hasMember("drag_radius")) {
+    p.drag_radius = readNumber(ns["drag_radius"], "drag_radius",
+                               "must be a finite number >= 0 (m)",
+                               [](double x) { return x >= 0.0; });
+  }
+  if (ns.hasMember("drag_pick_distance")) {
+    p.drag_pick_distance =
+        readNumber(ns["drag_pick_distance"], "drag_pick_distance",
+                   "must be a finite number > 0 (m)", [](double x) { return x > 0.0; });
   }
   return p;
 }

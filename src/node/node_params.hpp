@@ -36,6 +36,8 @@ struct NodeParams {
   std::vector<TfPinParam> tf_pins;  ///< pins attached to tf2 frames at start-up
   double tf_timeout = 0.5;          ///< a pin frame older than this is lost, s
   double tf_wait = 10.0;            ///< start-up wait for tf_pins frames, s
+  double drag_radius = 0.0;         ///< a drag takes the nodes this close to the picked one, m
+  double drag_pick_distance = 0.1;  ///< a clicked point farther from every node makes no handle, m
 };
 
 /// Private-namespace keys that belong to the node, not to the scene.
