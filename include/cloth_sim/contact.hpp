@@ -36,6 +36,15 @@ struct CollidersOverStep {
 /// What the last update found.
 enum class ContactCheck { Consistent, Changed, Failed };
 
+/// What an update changed, by kind (why a step took another pass).
+struct ContactChanges {
+  int added = 0;     ///< new contacts (swept path or end too close)
+  int released = 0;  ///< pulling contacts let go
+  int slid = 0;      ///< sticking nodes outside the cone
+  int stuck = 0;     ///< sliding nodes whose slip friction would reverse
+  int friction = 0;  ///< friction magnitude or direction still lagging
+};
+
 class ContactSet {
  public:
   /// Contact passes a step may take before it is reported as failed.
@@ -45,10 +54,13 @@ class ContactSet {
   static constexpr double kFrictionLag = 1e-2;
   /// ... and a lagged direction (implicit_euler) turn by this many radians.
   static constexpr double kDirectionLag = 1e-3;
-  /// Passes that may be spent on the friction lag alone; after them a lag
-  /// is accepted (as IPC's lagged friction does), while a contact set that
-  /// still changes (new contacts, releases, stick/slip) keeps the step going.
-  static constexpr int kFrictionPasses = 3;
+  /// Passes in which friction is refined: stick/slip switches and the lag of
+  /// its magnitude and direction. After them the friction states are kept
+  /// as they are (a lag, as IPC's lagged friction has; a node held stuck a
+  /// step longer than Coulomb would), while a contact set that still changes
+  /// (new contacts, releases) keeps the step going. A switch that would have
+  /// made the step gain energy is caught by the step's energy check.
+  static constexpr int kFrictionPasses = 2;
   /// A node ends a step at least thickness - kPenetrationTolerance from every
   /// collider (m); deeper counts as a new contact.
   static constexpr double kPenetrationTolerance = 1e-10;
@@ -98,9 +110,15 @@ class ContactSet {
   /// node: M (v1 - av) - b h f(x1, v1), friction left out. Updates normal
   /// forces, releases pulling contacts, switches stick/slip, adds contacts
   /// where the path x0 -> x1 comes too close. Fills maxPenetration().
+  /// `solve_tolerance` is the linear solve's relative tolerance: a contact
+  /// lets go only when it pulls by more than that fraction of the node's
+  /// weight and force (a loose solve's normal forces are that noisy).
   ContactCheck update(const CollidersOverStep& colliders, const ConstraintFilter& pins,
                       const std::vector<double>& mass, const VecX& x0, const VecX& x1,
-                      const VecX& v1, const VecX& reaction, double bh);
+                      const VecX& v1, const VecX& reaction, double bh,
+                      const Vec3& gravity, double solve_tolerance);
+  /// What the last update changed.
+  const ContactChanges& lastChanges() const { return changes_; }
   /// Why the last update failed.
   const std::string& failure() const { return failure_; }
 
@@ -163,6 +181,7 @@ class ContactSet {
   std::vector<int> slot_;  ///< per node: index in nodes_, -1 if not in contact
   std::vector<int> released_;  ///< nodes released this step (cycling guard)
   int passes_ = 0;             ///< updates this step
+  ContactChanges changes_;
   double h_ = 0.0;
   double max_penetration_ = 0.0;
   std::string failure_;

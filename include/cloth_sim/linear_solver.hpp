@@ -93,12 +93,14 @@ struct CgResult {
 
 /// The system matrix copied into a sparse matrix whose pattern is built once
 /// (nodes and springs never change), refilled in place and factorized.
-/// Pinned nodes become identity rows so the pattern stays the same.
+/// Pinned nodes become identity rows so the pattern stays the same; a
+/// projected node's rows and columns are filtered (S A S, plus (I - S) times
+/// its mean diagonal), so the factor is of the constrained system itself.
 class CholeskyFactor {
  public:
   /// Refills the values and factorizes. Returns false if not positive definite.
   bool factorize(const SystemMatrix& A, const std::vector<Spring>& springs,
-                 const std::vector<char>& free);
+                 const ConstraintFilter& filter);
   void solve(const VecX& r, VecX& z) const { z = ldlt_.solve(r); }
   /// A factor of a recent matrix is still a very good preconditioner: it is
   /// reused until a solve needs more than this many CG iterations.
@@ -106,7 +108,7 @@ class CholeskyFactor {
   /// A reused factor that has not solved within this many iterations is
   /// replaced by a fresh one, and CG goes on from where it stopped.
   static constexpr int kStaleFactorIterations = 15;
-  bool isValidFor(const std::vector<char>& free) const { return valid_ && free == free_; }
+  bool isValidFor(const ConstraintFilter& filter) const { return valid_ && filter == filter_; }
   void invalidate() { valid_ = false; }
 
  private:
@@ -118,7 +120,7 @@ class CholeskyFactor {
   int num_nodes_ = -1;
   size_t num_springs_ = 0;
   bool valid_ = false;
-  std::vector<char> free_;  ///< pin mask the factor was made for
+  ConstraintFilter filter_;  ///< the filter the factor was made for
 };
 
 /// Reused buffers, so a solve allocates nothing once sized.

@@ -264,11 +264,11 @@ double ContactSet::frictionPotential(const VecX& v) const {
 ContactCheck ContactSet::update(const CollidersOverStep& colliders, const ConstraintFilter& pins,
                                 const std::vector<double>& mass, const VecX& x0,
                                 const VecX& x1, const VecX& v1, const VecX& reaction,
-                                double bh) {
-  (void)mass;
+                                double bh, const Vec3& gravity, double solve_tolerance) {
   failure_.clear();
   bool changed = false;
   const bool refine_friction = ++passes_ <= kFrictionPasses;
+  changes_ = ContactChanges();
   const auto& all = *colliders.colliders;
   const double thickness = colliders.thickness;
 
@@ -292,7 +292,8 @@ ContactCheck ContactSet::update(const CollidersOverStep& colliders, const Constr
       c.plane[q].normal_force = lambda[q];
       if (lambda[q] < lambda[weakest]) weakest = q;
     }
-    const double pull_tolerance = 1e-9 * force.norm();
+    const double pull_tolerance =
+        std::max(1e-9, solve_tolerance) * (force.norm() + mass[c.node] * gravity.norm());
     double cap = 0.0;
     for (int q = 0; q < c.num_planes; ++q) {
       cap += all[c.plane[q].collider].friction() * std::max(lambda[q], 0.0);
@@ -306,9 +307,10 @@ ContactCheck ContactSet::update(const CollidersOverStep& colliders, const Constr
     // A node on the cone's boundary can flip between stick and slip at every
     // pass (sliding, friction stops it; sticking, it needs a hair more than
     // mu f_n): after two flips in a step it stays stuck for the step.
-    if (c.sticking && needed > cap * (1.0 + 1e-9) && c.flips < 2) {
+    if (refine_friction && c.sticking && needed > cap * (1.0 + 1e-9) && c.flips < 2) {
       c.sticking = false;
       ++c.flips;
+      ++changes_.slid;
       c.slip = -tangential / needed;
       c.slip_speed = 0.0;
       c.friction = cap;
@@ -318,6 +320,7 @@ ContactCheck ContactSet::update(const CollidersOverStep& colliders, const Constr
     }
     if (!c.held && lambda[weakest] < -pull_tolerance) {  // adhesion: let go
       changed = true;
+      ++changes_.released;
       released_.push_back(c.node);
       if (c.num_planes == 1) {
         nodes_.erase(nodes_.begin() + static_cast<long>(k));
@@ -330,7 +333,7 @@ ContactCheck ContactSet::update(const CollidersOverStep& colliders, const Constr
       ++k;
       continue;
     }
-    if (!c.sticking && (cap > 0.0 || c.friction > 0.0)) {
+    if (refine_friction && !c.sticking && (cap > 0.0 || c.friction > 0.0)) {
       const Vec3 slip = slipOf(c.tangent, v1.segment<3>(3 * c.node), c.surface_velocity);
       const double speed = slip.norm();
       // Friction would reverse the slip: stick. (A slow slip the same way is
@@ -340,6 +343,7 @@ ContactCheck ContactSet::update(const CollidersOverStep& colliders, const Constr
       if (cap > 0.0 && c.slip_speed > 0.0 && !(slip.dot(c.slip) > 0.0)) {
         c.sticking = true;
         ++c.flips;
+        ++changes_.stuck;
         changed = true;
       } else {
         const Vec3 direction = speed > 0.0 ? Vec3(slip / speed) : c.slip;
@@ -351,6 +355,7 @@ ContactCheck ContactSet::update(const CollidersOverStep& colliders, const Constr
         const bool lagging = std::abs(cap - c.friction) > kFrictionLag * std::max(cap, c.friction);
         if (refine_friction && (lagging || turned)) {
           changed = true;
+          ++changes_.friction;
         }
         // Averaged after the first update: the normal force of the whole
         // cloth can swing between passes when every friction follows it.
@@ -383,6 +388,7 @@ ContactCheck ContactSet::update(const CollidersOverStep& colliders, const Constr
                            kPenetrationTolerance);
       }
       if (!hit) continue;
+      ++changes_.added;
       const int s = slot_[i] >= 0 ? slot_[i] : addNode(i, all[k].friction() > 0.0);
       NodeContact& c = nodes_[s];
       if (std::find(released_.begin(), released_.end(), i) != released_.end()) c.held = true;

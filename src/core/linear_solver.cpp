@@ -111,26 +111,36 @@ void CholeskyFactor::buildPattern(int n, const std::vector<Spring>& springs) {
 }
 
 bool CholeskyFactor::factorize(const SystemMatrix& A, const std::vector<Spring>& springs,
-                               const std::vector<char>& free) {
+                               const ConstraintFilter& filter) {
+  const std::vector<char>& free = filter.freeMask();
   const int n = A.numNodes();
   if (n != num_nodes_ || springs.size() != num_springs_) buildPattern(n, springs);
   double* values = matrix_.valuePtr();
   for (int i = 0; i < n; ++i) {
-    const Mat3 D = free[i] ? A.fullDiag(i) : Mat3::Identity();
+    Mat3 D = free[i] ? A.fullDiag(i) : Mat3::Identity();
+    if (filter.isProjected(i)) {
+      const Mat3 S = filter.projector(i);
+      D = S * D * S + (Mat3::Identity() - S) * (D.trace() / 3.0);
+    }
     for (int c = 0; c < 3; ++c) {
       for (int r = c; r < 3; ++r) values[diag_index_[9 * i + 3 * c + r]] = D(r, c);
     }
   }
   for (size_t k = 0; k < springs.size(); ++k) {
-    const bool both_free = free[springs[k].i] && free[springs[k].j];
-    const Mat3& S = A.coupling(static_cast<int>(k));  // symmetric: A_ij = A_ji = -S
+    const int i = springs[k].i, j = springs[k].j;
+    const bool both_free = free[i] && free[j];
+    Mat3 C = -A.coupling(static_cast<int>(k));  // symmetric: A_ij = A_ji = -S
+    const int hi = std::max(i, j), lo = std::min(i, j);
+    if (both_free && (filter.isProjected(hi) || filter.isProjected(lo))) {
+      C = filter.projector(hi) * C * filter.projector(lo);  // block (hi, lo) of S A S
+    }
     for (int c = 0; c < 3; ++c) {
-      for (int r = 0; r < 3; ++r) values[coupling_index_[9 * k + 3 * c + r]] = both_free ? -S(r, c) : 0.0;
+      for (int r = 0; r < 3; ++r) values[coupling_index_[9 * k + 3 * c + r]] = both_free ? C(r, c) : 0.0;
     }
   }
   ldlt_.factorize(matrix_);
   valid_ = ldlt_.info() == Eigen::Success;
-  free_ = free;
+  filter_ = filter;
   return valid_;
 }
 
@@ -204,11 +214,11 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
     }
   } else if (preconditioner == Preconditioner::Cholesky) {
     if (!ws.cholesky) ws.cholesky = std::make_shared<CholeskyFactor>();
-    fresh_factor = !ws.cholesky->isValidFor(free) ||
+    fresh_factor = !ws.cholesky->isValidFor(filter) ||
                    ws.last_iterations > CholeskyFactor::kRefactorIterations;
     if (fresh_factor) {
       ++ws.factorizations;
-      if (!ws.cholesky->factorize(A, springs, free)) {
+      if (!ws.cholesky->factorize(A, springs, filter)) {
         result.relative_residual = 1.0;
         return result;  // not positive definite: the caller's recovery decides
       }

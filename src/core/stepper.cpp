@@ -72,7 +72,8 @@ StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
       stats.contact_passes = pass;
       if (!stats.ok || !x.allFinite() || !v.allFinite()) break;
       const ContactCheck check =
-          contact_.update(colliders, filter_, model.mass, x0_, x, v, reaction_, bh_);
+          contact_.update(colliders, filter_, model.mass, x0_, x, v, reaction_, bh_, model.gravity,
+                      settings_.tolerance);
       if (check == ContactCheck::Consistent) break;
       if (check == ContactCheck::Failed) {
         stats.ok = false;
