@@ -268,16 +268,36 @@ struct BulletPeer::Impl {
   std::unique_ptr<btDeformableMultiBodyDynamicsWorld> world;
   std::unique_ptr<btSoftBody> body;
   std::vector<double> rest_lengths;
+  // Static boxes (contact scenes only).
+  std::vector<std::unique_ptr<btBoxShape>> box_shapes;
+  std::vector<std::unique_ptr<btRigidBody>> boxes;
 
   ~Impl() {
+    if (world) {
+      for (auto& box : boxes) world->removeRigidBody(box.get());
+    }
     if (world && body) world->removeSoftBody(body.get());
     world.reset();
   }
 };
 
 BulletPeer::BulletPeer(const Model& model, const VecX& x0, const std::vector<int>& pinned,
-                       const BulletSettings& settings, const VecX& v0)
+                       const BulletSettings& settings, const VecX& v0,
+                       const BulletContact& contact)
     : settings_(settings) {
+  if (!contact.boxes.empty()) {
+    if (!(contact.margin >= 0) || !std::isfinite(contact.margin)) {
+      throw std::invalid_argument("contact.margin: must be >= 0 and finite");
+    }
+    if (!(settings.sdf_voxel > 0) || !std::isfinite(settings.sdf_voxel)) {
+      throw std::invalid_argument("bullet.sdf_voxel: must be > 0 and finite");
+    }
+    for (const BulletBox& b : contact.boxes) {
+      if (!(b.half_extents.minCoeff() > 0) || !(b.friction >= 0)) {
+        throw std::invalid_argument("contact.boxes: half extents must be > 0, friction >= 0");
+      }
+    }
+  }
   validate(model, x0, v0, pinned, settings);
   const int n = model.numNodes();
   impl_ = std::make_unique<Impl>();
@@ -333,9 +353,47 @@ BulletPeer::BulletPeer(const Model& model, const VecX& x0, const std::vector<int
     node.m_x = node.m_q = toBt(x0, i);
     node.m_v = node.m_vn = (v0.size() && !is_pinned[i]) ? toBt(v0, i) : btVector3(0, 0, 0);
   }
-  body.m_cfg.collisions = 0;                        // no contact of any kind
   body.setActivationState(DISABLE_DEACTIVATION);    // never put to sleep
-  m.world->addSoftBody(&body, 0, 0);                // filter group/mask 0: no pairs
+  if (contact.boxes.empty()) {
+    body.m_cfg.collisions = 0;                      // no contact of any kind
+    m.world->addSoftBody(&body, 0, 0);              // filter group/mask 0: no pairs
+  } else {
+    // Bullet's deformable node-vs-rigid contact (as its DeformableRigid
+    // example): signed distance from the sparse SDF, a contact when the
+    // predicted position x_n + h v is within the margin; friction
+    // kDF * the rigid's friction, so kDF = 1 and the rigid carries mu.
+    // (SDF_RD alone does nothing in 3.24: nodes are tested only with SDF_RDN.)
+    body.m_cfg.collisions = btSoftBody::fCollision::SDF_RD | btSoftBody::fCollision::SDF_RDN;
+    body.m_cfg.kDF = 1.0;
+    body.m_cfg.kKHR = 1.0;
+    body.m_cfg.kCHR = 1.0;
+    body.getCollisionShape()->setMargin(contact.margin);
+    body.setCollisionFlags(0);
+    m.world->getWorldInfo().m_sparsesdf.setDefaultVoxelsz(settings.sdf_voxel);
+    m.world->getWorldInfo().m_sparsesdf.Reset();
+    m.world->addSoftBody(&body);                    // default filters: collides with rigids
+    for (const BulletBox& b : contact.boxes) {
+      auto shape = std::make_unique<btBoxShape>(
+          btVector3(b.half_extents.x(), b.half_extents.y(), b.half_extents.z()));
+      // btBoxShape keeps its outer extents, but its distance is that of a box
+      // shrunk by the margin plus the margin: edges rounded by the margin
+      // (0.04 m by default). 1 mm keeps them sharp enough.
+      shape->setMargin(0.001);
+      btTransform pose;
+      pose.setIdentity();
+      pose.setOrigin(btVector3(b.center.x(), b.center.y(), b.center.z()));
+      const Mat3& r = b.rotation;
+      pose.setBasis(btMatrix3x3(r(0, 0), r(0, 1), r(0, 2), r(1, 0), r(1, 1), r(1, 2), r(2, 0),
+                                r(2, 1), r(2, 2)));
+      btRigidBody::btRigidBodyConstructionInfo info(0.0, nullptr, shape.get());
+      info.m_startWorldTransform = pose;
+      auto rigid = std::make_unique<btRigidBody>(info);
+      rigid->setFriction(b.friction);
+      m.world->addRigidBody(rigid.get());
+      m.box_shapes.push_back(std::move(shape));
+      m.boxes.push_back(std::move(rigid));
+    }
+  }
 
   const bool along = model.damping_model == DampingModel::AlongSpring;
   if (!model.springs.empty()) {

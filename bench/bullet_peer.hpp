@@ -1,7 +1,9 @@
 // The benchmark's peer: Bullet 3.24's implicit deformable solver
 // (btDeformableMultiBodyDynamicsWorld + btDeformableMassSpringForce, double
 // precision) given the same nodes, masses, pins, springs, gravity and damping
-// as a cloth_sim Model. No collisions, no ground. Built only when CMake finds
+// as a cloth_sim Model. No collisions unless static boxes are given (the
+// contact benchmark: Bullet's own node-rigid contact and friction against
+// btBoxShape bodies of zero mass). Built only when CMake finds
 // Bullet's float64 package (CLOTH_SIM_HAVE_BULLET); see bench/README.md for
 // how each parameter maps and where Bullet's model differs from ours.
 #pragma once
@@ -44,6 +46,30 @@ struct BulletSettings {
   /// shares the damping and stretch and shear share the stiffness. false
   /// (default): the same force with per-link coefficients (bullet_peer.cpp).
   bool stock_force = false;
+
+  /// Contact only: btSparseSdf voxel size (m) of Bullet's node-rigid contact
+  /// (btSoftBody::checkDeformableContact samples the collider's signed
+  /// distance on this grid and interpolates trilinearly). Bullet's default,
+  /// 0.25 m, rounds a box's edges by up to that much; 0.01 m is closer to the
+  /// box the scene describes.
+  double sdf_voxel = 0.01;
+};
+
+/// A static box for Bullet's own contact: a btBoxShape in a btRigidBody of
+/// zero mass, at `center`, turned by `rotation`.
+struct BulletBox {
+  Vec3 center = Vec3::Zero();
+  Vec3 half_extents = Vec3::Ones();
+  Mat3 rotation = Mat3::Identity();
+  double friction = 0.0;  ///< Coulomb mu: the rigid body's friction (the soft body's kDF is 1)
+};
+
+/// Colliders for the peer. Empty boxes: no collisions of any kind (as before).
+struct BulletContact {
+  std::vector<BulletBox> boxes;
+  /// The soft body's collision margin (m): nodes are kept this far outside
+  /// the boxes (cloth_sim's contact.thickness).
+  double margin = 0.0;
 };
 
 /// Work done inside Bullet, counted through the spring force's callbacks.
@@ -63,7 +89,8 @@ class BulletPeer {
   /// represent (air drag, bad sizes, stock_force with per-group coefficients,
   /// non-positive dt or iteration counts).
   BulletPeer(const Model& model, const VecX& x0, const std::vector<int>& pinned,
-             const BulletSettings& settings, const VecX& v0 = VecX());
+             const BulletSettings& settings, const VecX& v0 = VecX(),
+             const BulletContact& contact = BulletContact());
   ~BulletPeer();
   BulletPeer(const BulletPeer&) = delete;
   BulletPeer& operator=(const BulletPeer&) = delete;

@@ -36,6 +36,8 @@
 #include <string>
 #include <vector>
 
+#include "cloth_sim/collider.hpp"
+#include "cloth_sim/contact.hpp"
 #include "cloth_sim/forces.hpp"
 #include "cloth_sim/model.hpp"
 #include "cloth_sim/scene.hpp"
@@ -258,6 +260,12 @@ struct Run {
   double assembly_wall_s = 0.0, solve_wall_s = 0.0;
   long cg_iterations = 0, newton_iterations = 0, matrix_products = -1;
   double max_residual = 0.0, max_newton_residual = 0.0, max_strain = 0.0, energy_final = kNaN;
+  // Contact scenes (recorded runs; NaN without colliders), measured from the
+  // positions at every step's end the same way for cloth_sim and Bullet:
+  double max_penetration = kNaN;  ///< max over steps, nodes, colliders of thickness - distance (>= 0)
+  double max_depth = kNaN;        ///< the same of -distance: depth inside the collider itself
+  double contacts_sum = 0.0;      ///< cloth_sim's StepStats::contacts, summed over steps
+  double contact_passes_sum = 0.0;  ///< cloth_sim's StepStats::contact_passes, summed
   VecX x_final;
   std::vector<VecX> samples;        ///< only when recording
   std::vector<Snapshot> snapshots;  ///< only when recording
@@ -307,10 +315,54 @@ Scene sceneFor(const Scene& base, const Setting& s) {
   return scene;
 }
 
+/// The scene's colliders at their scene poses (the benchmark's are static).
+struct StaticColliders {
+  std::vector<cloth_sim::Collider> colliders;
+  cloth_sim::CollidersOverStep over_step;
+  explicit StaticColliders(const Scene& scene) {
+    for (const cloth_sim::ColliderParams& p : scene.colliders) {
+      colliders.push_back(cloth_sim::Collider::fromParams(p, scene.contact.friction));
+    }
+    over_step.colliders = &colliders;
+    for (const cloth_sim::Collider& c : colliders) {
+      over_step.start.push_back(c.scenePose());
+      over_step.end.push_back(c.scenePose());
+    }
+    over_step.thickness = scene.contact.thickness;
+  }
+  bool empty() const { return colliders.empty(); }
+  /// Folds the positions x into run.max_penetration and run.max_depth.
+  void measure(const VecX& x, Run& run) const {
+    if (colliders.empty()) return;
+    double deepest = -INFINITY;  // max over nodes and colliders of -signed distance
+    for (int i = 0; i < static_cast<int>(x.size() / 3); ++i) {
+      for (size_t k = 0; k < colliders.size(); ++k) {
+        deepest = std::max(deepest,
+                           -colliders[k].closest(x.segment<3>(3 * i), over_step.end[k]).distance);
+      }
+    }
+    const double depth = std::max(0.0, deepest);
+    const double penetration = std::max(0.0, over_step.thickness + deepest);
+    run.max_depth = std::isnan(run.max_depth) ? depth : std::max(run.max_depth, depth);
+    run.max_penetration = std::isnan(run.max_penetration)
+                              ? penetration
+                              : std::max(run.max_penetration, penetration);
+  }
+};
+
+/// The scene's uniform initial velocity on every unpinned node (3n).
+VecX initialVelocities(const Scene& scene) {
+  const int n = scene.numNodes();
+  VecX v(3 * n);
+  for (int i = 0; i < n; ++i) v.segment<3>(3 * i) = scene.initial.velocity;
+  return v;
+}
+
 Run runCloth(const Scene& base, const Setting& setting, const RunPlan& plan) {
   const Scene scene = sceneFor(base, setting);
   const long steps = stepCount(plan.duration, setting.dt);
   Simulation sim(scene);
+  const StaticColliders measure(base);
   Run run;
   const int sample_count = static_cast<int>(std::lround(plan.duration / plan.sample));
   Sampler sampler(plan.sample, sample_count);
@@ -351,8 +403,11 @@ Run runCloth(const Scene& base, const Setting& setting, const RunPlan& plan) {
     run.max_residual = std::max(run.max_residual, s.residual);
     run.max_newton_residual = std::max(run.max_newton_residual, s.newton_residual);
     run.max_strain = std::max(run.max_strain, s.max_strain);
+    run.contacts_sum += s.contacts;
+    run.contact_passes_sum += s.contact_passes;
     ++run.steps;
     if (plan.record) {
+      measure.measure(sim.positions(), run);
       sampler.afterStep(n * setting.dt, x0, v0, (n + 1) * setting.dt, sim.positions(),
                         sim.velocities());
     }
@@ -380,6 +435,32 @@ cloth_sim::bench::BulletSettings bulletSettings(const Setting& s) {
 }
 #endif
 
+#ifdef CLOTH_SIM_HAVE_BULLET
+/// The scene's colliders for the peer: boxes only (Bullet's static
+/// btBoxShape), friction mu on the rigid, the thickness as the soft body's
+/// collision margin.
+cloth_sim::bench::BulletContact bulletContact(const Scene& scene) {
+  cloth_sim::bench::BulletContact contact;
+  for (size_t k = 0; k < scene.colliders.size(); ++k) {
+    const cloth_sim::ColliderParams& p = scene.colliders[k];
+    if (p.type != cloth_sim::ColliderParams::Type::Box) {
+      throw std::invalid_argument("colliders[" + std::to_string(k) +
+                                  "]: the Bullet peer takes boxes only, got " +
+                                  cloth_sim::toString(p.type));
+    }
+    cloth_sim::bench::BulletBox box;
+    box.center = p.center;
+    box.half_extents = p.half_extents;
+    box.rotation = cloth_sim::rotationFromRpy(p.rpy);
+    box.friction = p.friction.value_or(scene.contact.friction);
+    contact.boxes.push_back(box);
+  }
+  contact.margin = scene.contact.thickness;
+  return contact;
+}
+
+#endif
+
 double totalEnergy(const Model& model, const VecX& x, const VecX& v) {
   return cloth_sim::measureEnergy(model, x, v).total();
 }
@@ -390,10 +471,12 @@ Run runBullet(const Scene& base, const Setting& setting, const RunPlan& plan) {
   const Model model = cloth_sim::buildModel(base);
   const VecX x_init = cloth_sim::initialPositions(base, model.rest_positions);
   const long steps = stepCount(plan.duration, setting.dt);
-  cloth_sim::bench::BulletPeer peer(model, x_init, base.pins, bulletSettings(setting));
+  const StaticColliders measure(base);
+  cloth_sim::bench::BulletPeer peer(model, x_init, base.pins, bulletSettings(setting),
+                                    initialVelocities(base), bulletContact(base));
   const int sample_count = static_cast<int>(std::lround(plan.duration / plan.sample));
   Sampler sampler(plan.sample, sample_count);
-  VecX x0 = x_init, v0 = VecX::Zero(x_init.size()), x1, v1;
+  VecX x0 = x_init, v0 = peer.velocities(), x1, v1;
   const double cpu_start = threadCpuSeconds();
   const auto wall_start = WallClock::now();
   for (long n = 0; n < steps; ++n) {
@@ -414,6 +497,7 @@ Run runBullet(const Scene& base, const Setting& setting, const RunPlan& plan) {
       v1 = peer.velocities();
       // Strain needs positions: only in the recorded run (not timed).
       run.max_strain = std::max(run.max_strain, cloth_sim::maxStrain(model, x1));
+      measure.measure(x1, run);
       if (!x1.allFinite()) {
         run.ok = false;
         run.failure = "step " + std::to_string(n) + ": non-finite state";
@@ -467,7 +551,10 @@ VecX oneStep(const Model& model, const Scene& scene, const Scene::Solver& solver
   cloth_sim::History history;
   if (use_history && snap.has_prev) history = cloth_sim::History{&snap.x_prev, &snap.v_prev, h};
   VecX x = snap.x, v = snap.v;
-  const StepStats s = stepper.step(model, h, pins, history, x, v);
+  const StaticColliders colliders(scene);  // contact scenes: the step with its contacts
+  const StepStats s = stepper.step(model, h, pins, history, x, v, std::nullopt,
+                                   colliders.empty() ? cloth_sim::CollidersOverStep()
+                                                     : colliders.over_step);
   if (!s.ok) return VecX();
   return x;
 }
@@ -520,6 +607,8 @@ double solverError(const Scene& base, const Setting& setting, const std::vector<
     VecX x_setting;
     Method converged_method = Method::Newton;
     if (setting.isBullet()) {
+      // Bullet's contact is its own model: no converged cloth_sim step to compare with.
+      if (!base.colliders.empty()) return kNaN;
 #ifdef CLOTH_SIM_HAVE_BULLET
       x_setting = bulletOneStep(model, base, setting, snap);
 #endif
@@ -632,7 +721,7 @@ const char* const kCsvHeader =
     "cpu_s_per_sim_s_max,cpu_assembly_s_per_sim_s,cpu_solve_s_per_sim_s,cpu_other_s_per_sim_s,"
     "cpu_ms_per_step,wall_s_per_sim_s,cg_iterations_per_step,newton_iterations_per_step,"
     "max_residual,max_newton_residual,error,error_final,solver_error,max_strain,energy_drift,ref_dt,ref_diff,"
-    "deterministic,overrides";
+    "deterministic,overrides,max_penetration,max_depth,contacts_per_step,contact_passes_per_step";
 
 std::string csvNumber(double v) {
   if (!std::isfinite(v)) return "";
@@ -696,7 +785,10 @@ std::string formatRow(const Options& o, const Model& model, const Row& r, double
       << ',' << csvNumber(r.error_final) << ',' << csvNumber(r.solver_error) << ','
       << csvNumber(run.max_strain) << ',' << csvNumber(r.energy_drift) << ','
       << csvNumber(ref_dt) << ',' << csvNumber(ref_diff) << ',' << (r.deterministic ? 1 : 0)
-      << ',' << csvText(joined);
+      << ',' << csvText(joined) << ',' << csvNumber(run.max_penetration) << ','
+      << csvNumber(run.max_depth) << ','
+      << csvNumber(s.isBullet() || !run.contact_passes_sum ? kNaN : run.contacts_sum / steps) << ','
+      << csvNumber(s.isBullet() || !run.contact_passes_sum ? kNaN : run.contact_passes_sum / steps);
   return out.str();
 }
 
