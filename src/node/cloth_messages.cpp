@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include <Eigen/Geometry>
+
 namespace cloth_sim_ros {
 
 void TickStats::add(const cloth_sim::StepStats& s) {
@@ -14,6 +16,8 @@ void TickStats::add(const cloth_sim::StepStats& s) {
   energy = s.energy;
   max_strain = s.max_strain;
   rejected += s.rejected;
+  contacts = s.contacts;
+  contact_normal_force = s.contact_normal_force;
   const bool step_ok = s.ok && s.finite;
   if (!step_ok && ok) {  // the first real failure outranks a recovery note
     failure = s.failure.empty() ? std::string("state became non-finite") : s.failure;
@@ -98,6 +102,7 @@ void fillClothState(const cloth_sim::Simulation& sim, cloth_sim::ClothState* msg
   msg->pinned.assign(pinned.begin(), pinned.end());
   std::sort(msg->pinned.begin(), msg->pinned.end());
   msg->sim_time = sim.time();
+  msg->max_penetration = sim.maxPenetration();
 }
 
 void fillTickStats(const TickStats& tick, cloth_sim::ClothState* msg) {
@@ -112,6 +117,113 @@ void fillTickStats(const TickStats& tick, cloth_sim::ClothState* msg) {
   msg->rejected = static_cast<uint32_t>(tick.rejected);
   msg->ok = tick.ok;
   msg->failure = tick.failure;
+  msg->contacts = static_cast<uint32_t>(tick.contacts);
+  msg->contact_normal_force = tick.contact_normal_force;
+}
+
+namespace {
+
+geometry_msgs::Quaternion toQuaternion(const cloth_sim::Mat3& rotation) {
+  const Eigen::Quaterniond q(rotation);
+  geometry_msgs::Quaternion out;
+  out.x = q.x();
+  out.y = q.y();
+  out.z = q.z();
+  out.w = q.w();
+  return out;
+}
+
+/// A rotation that takes +z to the unit vector `axis`.
+cloth_sim::Mat3 zTo(const cloth_sim::Vec3& axis) {
+  return Eigen::Quaterniond::FromTwoVectors(cloth_sim::Vec3::UnitZ(), axis).toRotationMatrix();
+}
+
+void setPosition(const cloth_sim::Vec3& p, visualization_msgs::Marker* m) {
+  m->pose.position.x = p.x();
+  m->pose.position.y = p.y();
+  m->pose.position.z = p.z();
+}
+
+}  // namespace
+
+std_msgs::ColorRGBA defaultColliderColor() {
+  std_msgs::ColorRGBA c;
+  c.r = 0.55f;
+  c.g = 0.6f;
+  c.b = 0.7f;
+  c.a = 0.85f;
+  return c;
+}
+
+void fillColliderMarkers(const cloth_sim::Simulation& sim, const std::string& frame_id,
+                         const std_msgs::ColorRGBA& color, visualization_msgs::MarkerArray* out) {
+  using cloth_sim::Vec3;
+  using visualization_msgs::Marker;
+  using Type = cloth_sim::Collider::Type;
+  out->markers.clear();
+  const std::vector<cloth_sim::Collider>& colliders = sim.colliders();
+  for (size_t k = 0; k < colliders.size(); ++k) {
+    const cloth_sim::Collider& c = colliders[k];
+    const cloth_sim::Pose& pose = sim.colliderState(static_cast<int>(k)).pose;
+    Marker m;
+    m.header.frame_id = frame_id;
+    m.ns = c.name().empty() ? "colliders[" + std::to_string(k) + "]" : c.name();
+    m.id = 0;
+    m.action = Marker::ADD;
+    m.color = color;
+    m.frame_locked = false;
+    m.pose.orientation.w = 1.0;
+    switch (c.type()) {
+      case Type::Plane: {
+        const Vec3 normal = (pose.rotation * c.planeNormal()).normalized();
+        m.type = Marker::CUBE;
+        setPosition(pose.translation - 0.5 * kPlaneMarkerThickness * normal, &m);
+        m.pose.orientation = toQuaternion(zTo(normal));
+        m.scale.x = m.scale.y = kPlaneMarkerSize;
+        m.scale.z = kPlaneMarkerThickness;
+        out->markers.push_back(m);
+        break;
+      }
+      case Type::Sphere:
+        m.type = Marker::SPHERE;
+        setPosition(pose.translation, &m);
+        m.scale.x = m.scale.y = m.scale.z = 2.0 * c.radius();
+        out->markers.push_back(m);
+        break;
+      case Type::Box:
+        m.type = Marker::CUBE;
+        setPosition(pose.translation, &m);
+        m.pose.orientation = toQuaternion(pose.rotation);
+        m.scale.x = 2.0 * c.halfExtents().x();
+        m.scale.y = 2.0 * c.halfExtents().y();
+        m.scale.z = 2.0 * c.halfExtents().z();
+        out->markers.push_back(m);
+        break;
+      case Type::Capsule: {
+        const Vec3 a = pose.translation;
+        const Vec3 b = pose.toWorld(c.segment());
+        const double length = (b - a).norm();
+        m.type = Marker::CYLINDER;
+        setPosition(0.5 * (a + b), &m);
+        m.pose.orientation =
+            toQuaternion(length > 0.0 ? zTo((b - a) / length) : cloth_sim::Mat3::Identity());
+        m.scale.x = m.scale.y = 2.0 * c.radius();
+        m.scale.z = std::max(length, 1e-6);  // RViz refuses a zero scale
+        out->markers.push_back(m);
+        for (int end = 0; end < 2; ++end) {
+          Marker cap = m;
+          cap.id = 1 + end;
+          cap.type = Marker::SPHERE;
+          setPosition(end == 0 ? a : b, &cap);
+          cap.pose.orientation = geometry_msgs::Quaternion();
+          cap.pose.orientation.w = 1.0;
+          cap.scale.x = cap.scale.y = cap.scale.z = 2.0 * c.radius();
+          out->markers.push_back(cap);
+        }
+        break;
+      }
+    }
+  }
 }
 
 bool allFinite(const cloth_sim::VecX& values) { return values.allFinite(); }

@@ -7,6 +7,7 @@
 
 #include <std_msgs/ColorRGBA.h>
 #include <visualization_msgs/Marker.h>
+#include <visualization_msgs/MarkerArray.h>
 
 #include "cloth_sim/ClothState.h"
 #include "cloth_sim/model.hpp"
@@ -26,6 +27,8 @@ struct TickStats {
   double energy = 0.0;      ///< after the last step
   double max_strain = 0.0;  ///< after the last step
   int rejected = 0;         ///< attempts rolled back by recovery
+  int contacts = 0;         ///< nodes in contact after the last step
+  double contact_normal_force = 0.0;  ///< after the last step, N
   bool ok = true;           ///< every step succeeded and stayed finite
   std::string failure;      ///< first failure, else what recovery fixed
 
@@ -51,6 +54,21 @@ constexpr double kFullStrainColor = 0.10;
 /// One colour per triangle vertex from per-node strain.
 void setStrainColors(const cloth_sim::Model& model, const std::vector<double>& node_strain,
                      visualization_msgs::Marker* marker);
+
+/// The ~colliders colour: a light grey-blue, slightly translucent.
+std_msgs::ColorRGBA defaultColliderColor();
+
+/// Side of the square CUBE that shows a plane collider, m.
+constexpr double kPlaneMarkerSize = 4.0;
+/// Thickness of that CUBE (its top face is the plane), m.
+constexpr double kPlaneMarkerThickness = 0.01;
+
+/// The colliders of `sim` where they are now, in `frame_id`: ns = collider
+/// name, one marker per collider (plane: a large thin CUBE under the plane;
+/// sphere: SPHERE; box: CUBE with its orientation) except a capsule, which is
+/// a CYLINDER (id 0) and a SPHERE at each end (ids 1, 2).
+void fillColliderMarkers(const cloth_sim::Simulation& sim, const std::string& frame_id,
+                         const std_msgs::ColorRGBA& color, visualization_msgs::MarkerArray* out);
 
 /// Fills a ClothState's cloth part: size, positions, velocities, pins, time.
 void fillClothState(const cloth_sim::Simulation& sim, cloth_sim::ClothState* msg);

@@ -59,6 +59,7 @@ ClothNode::ClothNode(ros::NodeHandle nh, ros::NodeHandle private_nh, const NodeP
       tick_s_(1.0 / params.rate),
       tf_listener_(tf_buffer_, nh),
       frame_pins_(tf_buffer_, params.frame_id, params.tf_timeout),
+      frame_colliders_(tf_buffer_, params.frame_id, params.tf_timeout),
       updater_(nh, private_nh) {
   divideTick();
   // Start-up tf pins need their frames: wait for each, then attach.
@@ -76,6 +77,8 @@ ClothNode::ClothNode(ros::NodeHandle nh, ros::NodeHandle private_nh, const NodeP
   }
   const Status status = applyTfPinParams();
   if (!status) throw ParamError(status.message);
+  // Colliders with a `frame` need it too (throws naming colliders[k].frame).
+  frame_colliders_.start(&sim_, params_.tf_wait);
 
   cloth_marker_ = triangleMarker(params_.frame_id, "cloth", params_.color);
   std_msgs::ColorRGBA opaque;
@@ -88,6 +91,8 @@ ClothNode::ClothNode(ros::NodeHandle nh, ros::NodeHandle private_nh, const NodeP
     strain_pub_ = private_nh.advertise<visualization_msgs::Marker>("strain", 2);
   }
   state_pub_ = private_nh.advertise<cloth_sim::ClothState>("state", 2);
+  colliders_pub_ = private_nh.advertise<visualization_msgs::MarkerArray>("colliders", 2,
+                                                                        /*latch=*/true);
   services_.push_back(private_nh.advertiseService("pin_nodes", &ClothNode::onPinNodes, this));
   services_.push_back(
       private_nh.advertiseService("release_nodes", &ClothNode::onReleaseNodes, this));
@@ -123,7 +128,9 @@ ClothNode::ClothNode(ros::NodeHandle nh, ros::NodeHandle private_nh, const NodeP
   initial.dt = step_h_;
   initial.energy = sim_.energy();
   initial.max_strain = sim_.maxStrain();
-  publish(ros::Time::now(), initial);
+  const ros::Time stamp = ros::Time::now();
+  publish(stamp, initial);
+  publishColliders(stamp, true);
   last_tick_ = initial;
   timer_ = nh.createSteadyTimer(ros::WallDuration(tick_s_), &ClothNode::onTick, this);
 }
@@ -167,6 +174,7 @@ void ClothNode::onTick(const ros::SteadyTimerEvent& /*event*/) {
     }
   }
   drag_->update(tick_s_);
+  updateFrameColliders();
 
   TickStats tick;
   tick.dt = step_h_;
@@ -175,7 +183,9 @@ void ClothNode::onTick(const ros::SteadyTimerEvent& /*event*/) {
     if (!tick.ok) break;  // the core rolled back; the next tick tries again
   }
   const ros::SteadyTime publish_start = ros::SteadyTime::now();
-  publish(ros::Time::now(), tick);
+  const ros::Time stamp = ros::Time::now();  // the cloth and its colliders at once
+  publish(stamp, tick);
+  publishColliders(stamp, false);
   const double publish_s = (ros::SteadyTime::now() - publish_start).toSec();
   drag_->publishPoses();
   tuning_->sync();
@@ -234,6 +244,40 @@ void ClothNode::publish(const ros::Time& stamp, TickStats tick) {
     strain_valid_ = false;  // stale once nobody listens
   }
   state_pub_.publish(state_msg_);
+}
+
+void ClothNode::updateFrameColliders() {
+  if (frame_colliders_.size() == 0) return;
+  const std::map<std::string, std::string> was_lost = frame_colliders_.lost();
+  const std::map<std::string, std::string> newly_lost = frame_colliders_.update(&sim_, tick_s_);
+  for (const auto& [frame, why] : newly_lost) {
+    ROS_WARN("collider frame lost: %s; its colliders keep their last pose", why.c_str());
+  }
+  for (const auto& entry : was_lost) {
+    if (!frame_colliders_.lost().count(entry.first)) {
+      ROS_INFO("collider frame '%s' is back; its colliders follow it again",
+               entry.first.c_str());
+    }
+  }
+}
+
+void ClothNode::publishColliders(const ros::Time& stamp, bool force) {
+  const size_t n = sim_.colliders().size();
+  if (n == 0 && !force) return;
+  bool moved = force || published_collider_poses_.size() != n;
+  for (size_t k = 0; k < n && !moved; ++k) {
+    const cloth_sim::Pose& now = sim_.colliderState(static_cast<int>(k)).pose;
+    const cloth_sim::Pose& then = published_collider_poses_[k];
+    moved = now.translation != then.translation || now.rotation != then.rotation;
+  }
+  if (!moved) return;
+  published_collider_poses_.resize(n);
+  for (size_t k = 0; k < n; ++k) {
+    published_collider_poses_[k] = sim_.colliderState(static_cast<int>(k)).pose;
+  }
+  fillColliderMarkers(sim_, params_.frame_id, defaultColliderColor(), &collider_markers_);
+  for (visualization_msgs::Marker& m : collider_markers_.markers) m.header.stamp = stamp;
+  colliders_pub_.publish(collider_markers_);
 }
 
 // -------------------------------------------------------------- services ----
@@ -360,6 +404,7 @@ bool ClothNode::onReset(std_srvs::Trigger::Request& /*req*/,
   grasps_.clear();
   drag_->clearDrags();  // handles stay, on their nodes
   divideTick();         // the scene's dt again
+  frame_colliders_.snap(&sim_);  // reset put them at their scene poses
   const Status reattached = applyTfPinParams();  // grabs the nodes where they now are
   res.success = true;
   res.message = "reset to the initial state";
@@ -371,7 +416,9 @@ bool ClothNode::onReset(std_srvs::Trigger::Request& /*req*/,
   initial.dt = step_h_;
   initial.energy = sim_.energy();
   initial.max_strain = sim_.maxStrain();
-  publish(ros::Time::now(), initial);  // show the initial state before the next step
+  const ros::Time stamp = ros::Time::now();
+  publish(stamp, initial);  // show the initial state before the next step
+  publishColliders(stamp, true);
   last_tick_ = initial;
   drag_->publishPoses();
   tuning_->sync();  // the scene's settings again
@@ -391,6 +438,11 @@ void ClothNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
     stat.summaryf(DiagnosticStatus::ERROR,
                   "solver failed in %d tick(s): %s; publishing the last good state", w.failures,
                   w.failure.c_str());
+  } else if (!frame_colliders_.lost().empty()) {
+    const auto& first = *frame_colliders_.lost().begin();
+    stat.summaryf(DiagnosticStatus::WARN,
+                  "collider frame lost: %s; its colliders keep their last pose",
+                  first.second.c_str());
   } else if (w.overruns > 0) {
     stat.summaryf(DiagnosticStatus::WARN, "%d tick(s) overran the %.1f ms period", w.overruns,
                   1e3 * tick_s_);
@@ -423,6 +475,12 @@ void ClothNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
   stat.add("tf pins", frame_pins_.size());
   stat.add("grasped nodes", grasps_.numNodes());
   stat.add("drag handles", drag_->numHandles());
+  stat.add("colliders", sim_.colliders().size());
+  stat.add("tf colliders", frame_colliders_.size());
+  stat.add("tf colliders lost frames", frame_colliders_.lost().size());
+  stat.add("contacts", last_tick_.contacts);
+  stat.addf("contact normal force (N)", "%.6g", last_tick_.contact_normal_force);
+  stat.addf("max penetration (m)", "%.3g", sim_.maxPenetration());
   for (int type = 0; type < cloth_sim::kNumSpringTypes; ++type) {
     const cloth_sim::SpringGroup& group = sim_.group(static_cast<cloth_sim::SpringType>(type));
     if (!group.present) continue;

@@ -14,6 +14,7 @@
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
 #include <visualization_msgs/Marker.h>
+#include <visualization_msgs/MarkerArray.h>
 
 #include "cloth_messages.hpp"
 #include "cloth_sim/ClothState.h"
@@ -24,6 +25,7 @@
 #include "cloth_sim/SetStiffness.h"
 #include "cloth_sim/simulation.hpp"
 #include "drag_handles.hpp"
+#include "frame_colliders.hpp"
 #include "frame_pins.hpp"
 #include "grasp.hpp"
 #include "live_tuning.hpp"
@@ -67,6 +69,10 @@ class ClothNode {
   void onTick(const ros::SteadyTimerEvent& event);
   /// Publishes the current state, or the last finite one if it is not finite.
   void publish(const ros::Time& stamp, TickStats tick);
+  /// Publishes ~colliders if a collider moved since the last time (or `force`).
+  void publishColliders(const ros::Time& stamp, bool force);
+  /// Tf-attached colliders follow their frames; lost frames are reported once.
+  void updateFrameColliders();
 
   bool onPinNodes(cloth_sim::PinNodes::Request& req, cloth_sim::PinNodes::Response& res);
   bool onReleaseNodes(cloth_sim::ReleaseNodes::Request& req,
@@ -106,12 +112,13 @@ class ClothNode {
   tf2_ros::Buffer tf_buffer_;
   tf2_ros::TransformListener tf_listener_;
   FramePins frame_pins_;
+  FrameColliders frame_colliders_;
   Grasps grasps_;
   std::unique_ptr<DragHandles> drag_;
   std::unique_ptr<LiveTuning> tuning_;
   ros::Subscriber clicked_sub_;
 
-  ros::Publisher cloth_pub_, strain_pub_, state_pub_;
+  ros::Publisher cloth_pub_, strain_pub_, state_pub_, colliders_pub_;
   std::vector<ros::ServiceServer> services_;
   ros::SteadyTimer timer_;
   diagnostic_updater::Updater updater_;
@@ -119,6 +126,8 @@ class ClothNode {
   visualization_msgs::Marker cloth_marker_;   ///< reused: points rewritten in place
   visualization_msgs::Marker strain_marker_;
   cloth_sim::ClothState state_msg_;
+  visualization_msgs::MarkerArray collider_markers_;
+  std::vector<cloth_sim::Pose> published_collider_poses_;  ///< as last on ~colliders
   bool strain_valid_ = false;  ///< strain_marker_ holds a finite state
 
   Window window_;

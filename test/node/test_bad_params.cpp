@@ -145,6 +145,39 @@ TEST(BadParams, BadTfPinsAreNamed) {
   expectRefused("tf_pin_frame", {"~tf_pins[0].frame_id", "nowhere"});
 }
 
+XmlRpc::XmlRpcValue sphere(double radius, const std::string& frame) {
+  XmlRpc::XmlRpcValue c;
+  c["name"] = std::string("ball");
+  c["type"] = std::string("sphere");
+  c["center"] = list({0.0, 0.0, 0.5});
+  c["radius"] = radius;
+  if (!frame.empty()) c["frame"] = frame;
+  XmlRpc::XmlRpcValue colliders;
+  colliders.setSize(1);
+  colliders[0] = c;
+  return colliders;
+}
+
+TEST(BadParams, BadColliderIsNamed) {
+  setValidScene("collider_radius");
+  ros::param::set("/collider_radius/colliders", sphere(-0.1, ""));
+  expectRefused("collider_radius", {"colliders[0].radius", "-0.1"});
+
+  // A collider on a tf frame nobody publishes: refused like a tf pin's frame.
+  setValidScene("collider_frame");
+  ros::param::set("/collider_frame/colliders", sphere(0.1, "nowhere"));
+  ros::param::set("/collider_frame/tf_wait", 0.5);
+  expectRefused("collider_frame", {"colliders[0].frame", "nowhere"});
+}
+
+TEST(BadParams, ValidColliderKeepsTheNodeRunning) {
+  setValidScene("collider_ok");
+  ros::param::set("/collider_ok/colliders", sphere(0.1, "world"));
+  const NodeRun run = runNode("collider_ok", 4.0);
+  EXPECT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_EQ(run.output.find("FATAL"), std::string::npos) << run.output;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {

@@ -2,6 +2,8 @@
 // simulation, checked without ROS running.
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
+
 #include "cloth_messages.hpp"
 #include "cloth_sim/scene.hpp"
 #include "node_params.hpp"
@@ -90,6 +92,57 @@ TEST(ClothMessages, StateCarriesPositionsVelocitiesPinsAndTime) {
   }
   EXPECT_EQ(msg.pinned, std::vector<uint32_t>{0});
   EXPECT_DOUBLE_EQ(msg.sim_time, 0.05);
+}
+
+TEST(ClothMessages, ColliderMarkersShowEveryColliderWhereItIs) {
+  cloth_sim::Simulation sim(cloth_sim::parseScene(R"({
+    cloth: {rows: 3, cols: 3, origin: [0, 0, 2]},
+    colliders: [
+      {name: floor, type: plane, point: [0, 0, 0.5], normal: [1, 0, 0]},
+      {name: ball, type: sphere, center: [1, 2, 3], radius: 0.25},
+      {name: table, type: box, center: [0, 0, 0.4], half_extents: [0.5, 0.3, 0.4], rpy: [0, 0, 0.3]},
+      {type: capsule, a: [0, 0, 1], b: [0.2, 0, 1], radius: 0.02}]})"));
+  visualization_msgs::MarkerArray a;
+  cloth_sim_ros::fillColliderMarkers(sim, "map", cloth_sim_ros::defaultColliderColor(), &a);
+  using visualization_msgs::Marker;
+  ASSERT_EQ(a.markers.size(), 6u);  // a capsule is a cylinder and two spheres
+  for (const Marker& m : a.markers) EXPECT_EQ(m.header.frame_id, "map");
+  // The plane: a thin CUBE whose top face is the plane, its z axis the normal.
+  const Marker& plane = a.markers[0];
+  EXPECT_EQ(plane.ns, "floor");
+  EXPECT_EQ(plane.type, Marker::CUBE);
+  EXPECT_NEAR(plane.pose.position.x, -0.5 * cloth_sim_ros::kPlaneMarkerThickness, 1e-15);
+  EXPECT_NEAR(plane.pose.position.z, 0.5, 1e-15);
+  const Eigen::Quaterniond qp(plane.pose.orientation.w, plane.pose.orientation.x,
+                              plane.pose.orientation.y, plane.pose.orientation.z);
+  EXPECT_LT((qp * cloth_sim::Vec3::UnitZ() - cloth_sim::Vec3::UnitX()).norm(), 1e-12);
+  const Marker& ball = a.markers[1];
+  EXPECT_EQ(ball.type, Marker::SPHERE);
+  EXPECT_EQ(ball.scale.x, 0.5);
+  EXPECT_EQ(ball.pose.position.y, 2.0);
+  // The box keeps its yaw.
+  const Marker& box = a.markers[2];
+  EXPECT_EQ(box.type, Marker::CUBE);
+  EXPECT_EQ(box.scale.y, 0.6);
+  const Eigen::Quaterniond qb(box.pose.orientation.w, box.pose.orientation.x,
+                              box.pose.orientation.y, box.pose.orientation.z);
+  EXPECT_NEAR(qb.toRotationMatrix().eulerAngles(0, 1, 2).z(), 0.3, 1e-12);
+  // The capsule (no name: named by its place in the list).
+  EXPECT_EQ(a.markers[3].ns, "colliders[3]");
+  EXPECT_EQ(a.markers[3].type, Marker::CYLINDER);
+  EXPECT_NEAR(a.markers[3].scale.z, 0.2, 1e-15);
+  EXPECT_NEAR(a.markers[3].pose.position.x, 0.1, 1e-15);
+  EXPECT_EQ(a.markers[4].type, Marker::SPHERE);
+  EXPECT_EQ(a.markers[5].pose.position.x, 0.2);
+  EXPECT_EQ(a.markers[5].id, 2);
+
+  // A moved collider is shown where it went.
+  cloth_sim::Pose pose;
+  pose.translation = cloth_sim::Vec3(-1, 0, 0);
+  ASSERT_TRUE(sim.setColliderPose(1, pose));
+  cloth_sim_ros::fillColliderMarkers(sim, "map", cloth_sim_ros::defaultColliderColor(), &a);
+  EXPECT_EQ(a.markers[1].pose.position.x, -1.0);
+  EXPECT_EQ(a.markers[1].pose.position.z, 0.0);
 }
 
 TEST(ClothMessages, TickStatsCombineTheSteps) {
