@@ -50,10 +50,11 @@ class ContactSet {
   /// Contact passes a step may take before it is reported as failed.
   static constexpr int kMaxPasses = 25;
   /// A node's friction force may lag mu times the normal force of the same
-  /// step by this fraction before the step is solved again ...
-  static constexpr double kFrictionLag = 1e-2;
-  /// ... and a lagged direction (implicit_euler) turn by this many radians.
-  static constexpr double kDirectionLag = 1e-3;
+  /// step by this fraction before the step is solved again (the lag then
+  /// carries to the next step, as IPC's lagged friction does) ...
+  static constexpr double kFrictionLag = 0.1;
+  /// ... and its direction turn by this many radians.
+  static constexpr double kDirectionLag = 0.05;
   /// Passes in which friction is refined: stick/slip switches and the lag of
   /// its magnitude and direction. After them the friction states are kept
   /// as they are (a lag, as IPC's lagged friction has; a node held stuck a

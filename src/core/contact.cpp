@@ -307,7 +307,10 @@ ContactCheck ContactSet::update(const CollidersOverStep& colliders, const Constr
     // A node on the cone's boundary can flip between stick and slip at every
     // pass (sliding, friction stops it; sticking, it needs a hair more than
     // mu f_n): after two flips in a step it stays stuck for the step.
-    if (refine_friction && c.sticking && needed > cap * (1.0 + 1e-9) && c.flips < 2) {
+    // (Beyond the cone by more than the solve's own noise: a loose solve's
+    // tangential forces are only known to its tolerance.)
+    if (refine_friction && c.sticking && needed > cap * (1.0 + std::max(1e-9, solve_tolerance)) &&
+        c.flips < 2) {
       c.sticking = false;
       ++c.flips;
       ++changes_.slid;
