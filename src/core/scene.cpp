@@ -3,6 +3,7 @@
 // user can find it in the file (or in the --set that produced it).
 #include "cloth_sim/scene.hpp"
 
+#include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -459,6 +460,51 @@ Scene sceneFromYaml(const YAML::Node& root) {
   return scene;
 }
 
+/// Records where each document starts (the parser's events are not needed).
+class DocumentStarts : public YAML::EventHandler {
+ public:
+  YAML::Mark start;
+  void OnDocumentStart(const YAML::Mark& mark) override { start = mark; }
+  void OnDocumentEnd() override {}
+  void OnNull(const YAML::Mark&, YAML::anchor_t) override {}
+  void OnAlias(const YAML::Mark&, YAML::anchor_t) override {}
+  void OnScalar(const YAML::Mark&, const std::string&, YAML::anchor_t,
+                const std::string&) override {}
+  void OnSequenceStart(const YAML::Mark&, const std::string&, YAML::anchor_t,
+                       YAML::EmitterStyle::value) override {}
+  void OnSequenceEnd() override {}
+  void OnMapStart(const YAML::Mark&, const std::string&, YAML::anchor_t,
+                  YAML::EmitterStyle::value) override {}
+  void OnMapEnd() override {}
+};
+
+/// The number of YAML documents in the text, without YAML::LoadAll: on text
+/// that yaml-cpp 0.7 cannot read past (",", ",a", ", x: 1", "[1],") its parser
+/// reports an empty document without consuming anything, again and again, and
+/// LoadAll loops forever allocating. A document that starts where the one
+/// before it started is that case: a syntax error at that place.
+int countDocuments(const std::string& text, const std::string& prefix) {
+  std::istringstream in(text);
+  YAML::Parser parser(in);
+  int count = 0;
+  int last_start = -1;
+  DocumentStarts starts;
+  while (parser.HandleNextDocument(starts)) {
+    if (starts.start.pos <= last_start) {
+      const size_t pos = static_cast<size_t>(starts.start.pos);
+      const std::string found =
+          pos < text.size() ? "'" + text.substr(pos, 1) + "'" : "the end of the text";
+      throw SceneError(prefix + "YAML syntax error at line " +
+                       std::to_string(starts.start.line + 1) + ", column " +
+                       std::to_string(starts.start.column + 1) + ": unexpected " + found +
+                       " (not the start of a YAML value)");
+    }
+    last_start = starts.start.pos;
+    ++count;
+  }
+  return count;
+}
+
 // ----------------------------------------------------------- overrides ----
 
 /// One step of an override's key path: a map key or a sequence index.
@@ -516,7 +562,11 @@ void applyOverride(YAML::Node root, const std::string& override_text) {
   }
   YAML::Node value;
   try {
-    value = YAML::Load(override_text.substr(eq + 1));
+    const std::string value_text = override_text.substr(eq + 1);
+    if (countDocuments(value_text, name + ": value: ") > 1) {
+      throw SceneError(name + ": the value holds more than one YAML document");
+    }
+    value = YAML::Load(value_text);
   } catch (const YAML::Exception& e) {
     throw SceneError(name + ": cannot parse the value as YAML: " + e.msg);
   }
@@ -559,12 +609,11 @@ Scene parseWithSource(const std::string& yaml_text, const std::vector<std::strin
   const std::string prefix = source.empty() ? "" : source + ": ";
   YAML::Node root;
   try {
-    const std::vector<YAML::Node> documents = YAML::LoadAll(yaml_text);
-    if (documents.size() > 1) {
-      throw SceneError(prefix + "expected one YAML document, got " +
-                       std::to_string(documents.size()));
+    const int documents = countDocuments(yaml_text, prefix);
+    if (documents > 1) {
+      throw SceneError(prefix + "expected one YAML document, got " + std::to_string(documents));
     }
-    root = documents.empty() ? YAML::Node(YAML::NodeType::Map) : documents.front();
+    root = documents == 0 ? YAML::Node(YAML::NodeType::Map) : YAML::Load(yaml_text);
   } catch (const YAML::Exception& e) {
     throw SceneError(prefix + "YAML syntax error at line " + std::to_string(e.mark.line + 1) +
                      ", column " + std::to_string(e.mark.column + 1) + ": " + e.msg);

@@ -2,7 +2,10 @@
 
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <set>
+
+#include "cloth_sim/limits.hpp"
 
 namespace cloth_sim_ros {
 namespace {
@@ -49,7 +52,10 @@ std::vector<long> toLong(const std::vector<uint32_t>& indices) {
 
 int ClothNode::stepsPerTick(double tick_s, double dt) {
   // The small slack keeps an exact fit (1/50 s over 0.004 s) from rounding up.
-  return std::max(1, static_cast<int>(std::ceil(tick_s / dt - 1e-9)));
+  // Clamped before the cast (a huge count is refused by the constructor's work limit).
+  const double n = std::ceil(tick_s / dt - 1e-9);
+  if (!(n < std::numeric_limits<int>::max())) return std::numeric_limits<int>::max();
+  return std::max(1, static_cast<int>(n));
 }
 
 ClothNode::ClothNode(ros::NodeHandle nh, ros::NodeHandle private_nh, const NodeParams& params,
@@ -62,6 +68,13 @@ ClothNode::ClothNode(ros::NodeHandle nh, ros::NodeHandle private_nh, const NodeP
       tf_listener_(tf_buffer_, nh),
       frame_pins_(tf_buffer_, params.frame_id, params.tf_timeout),
       updater_(nh, private_nh) {
+  const Status work = cloth_sim::checkWork(
+      "rate", std::ceil(tick_s_ / scene.solver.dt - 1e-9), sim_.numNodes(),
+      cloth_sim::kMaxTickNodeSteps);
+  if (!work) {
+    throw ParamError(work.message + " in one tick of 1/rate = " + format("%g", tick_s_) +
+                     " s at solver.dt " + format("%g", scene.solver.dt) + " s");
+  }
   // Start-up tf pins need their frames: wait for each, then attach.
   for (size_t k = 0; k < params_.tf_pins.size(); ++k) {
     const TfPinParam& pin = params_.tf_pins[k];
