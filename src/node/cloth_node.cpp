@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <map>
 #include <set>
 
 #include "cloth_sim/limits.hpp"
@@ -139,6 +140,8 @@ void ClothNode::onTick(const ros::SteadyTimerEvent& /*event*/) {
 
   for (const std::string& error : frame_pins_.update(&sim_, tick_s_)) {
     ROS_WARN_THROTTLE(2.0, "tf pin: %s; its nodes hold their last position", error.c_str());
+    window_.tf_lost += 1;
+    window_.tf_error = error;
   }
 
   TickStats tick;
@@ -306,7 +309,23 @@ bool ClothNode::onReleaseNodes(cloth_sim::ReleaseNodes::Request& req,
 
 bool ClothNode::onSetStiffness(cloth_sim::SetStiffness::Request& req,
                                cloth_sim::SetStiffness::Response& res) {
+  std::map<std::string, double> before;  // a jump by orders of magnitude is worth a warning
+  for (int type = 0; type < cloth_sim::kNumSpringTypes; ++type) {
+    const auto t = static_cast<cloth_sim::SpringType>(type);
+    if (sim_.group(t).present) before[cloth_sim::toString(t)] = sim_.group(t).stiffness;
+  }
   Status status = sim_.setStiffness(req.spring_type, req.stiffness, req.damping);
+  if (status) {
+    for (const auto& [name, old_k] : before) {
+      if (req.spring_type != "all" && req.spring_type != name) continue;
+      const double ratio = req.stiffness / old_k;
+      if (ratio > 1e3 || ratio < 1e-3) {
+        ROS_WARN("set_stiffness: %s stiffness changed %.3g times in one call (%g -> %g N/m); "
+                 "the solver may split steps until the cloth settles",
+                 name.c_str(), ratio, old_k, req.stiffness);
+      }
+    }
+  }
   if (status && status.message.empty()) {
     status.message = "set " + req.spring_type + " stiffness to " + format("%g", req.stiffness) +
                      " N/m" +
@@ -355,6 +374,9 @@ void ClothNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
   } else if (w.overruns > 0) {
     stat.summaryf(DiagnosticStatus::WARN, "%d tick(s) overran the %.1f ms period", w.overruns,
                   1e3 * tick_s_);
+  } else if (w.tf_lost > 0) {
+    stat.summaryf(DiagnosticStatus::WARN, "tf pin frame lost in %d tick(s): %s; its nodes hold "
+                  "their last position", w.tf_lost, w.tf_error.c_str());
   } else if (w.rejected > 0) {
     stat.summaryf(DiagnosticStatus::WARN, "recovered: %d step(s) rolled back and retried: %s",
                   w.rejected, w.failure.c_str());
@@ -380,6 +402,7 @@ void ClothNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
   stat.add("failures total", failures_total_);
   stat.add("pinned nodes", sim_.pinnedNodes().size());
   stat.add("tf pins", frame_pins_.size());
+  stat.add("tf pins lost (ticks)", w.tf_lost);
   for (int type = 0; type < cloth_sim::kNumSpringTypes; ++type) {
     const cloth_sim::SpringGroup& group = sim_.group(static_cast<cloth_sim::SpringType>(type));
     if (!group.present) continue;
