@@ -759,7 +759,7 @@ void validateEvent(const SceneEvent& event, const Scene& scene, const std::strin
     }
     case SceneEvent::Kind::MovePin: {
       const std::string action = path + ".move_pin";
-      // Whether the node is pinned at that time is checked when the event runs.
+      // A node not pinned when the event runs is pinned by it (docs/scene.md).
       requireNode(event.index, num_nodes, action + ".index");
       if (!event.position && !event.velocity) {
         fail(action, "expected position, velocity (with duration) or both");
