@@ -16,7 +16,8 @@
 //
 // Work per input is bounded so the fuzzer explores instead of waiting: only
 // scenes of at most kMaxFuzzNodes nodes are stepped, for at most kMaxFuzzSteps
-// steps, with the CG cap, Newton cap and halving depth clamped. The parse and
+// steps and kFuzzNodeSteps node-steps, with the CG cap (100), Newton cap (5)
+// and halving depth (2) clamped. The parse and
 // validation of every scene, whatever its size, are fuzzed in full; the run
 // limits themselves are checked by the CLI tests (test/core/test_hardening.cpp).
 #include <cmath>
@@ -33,8 +34,9 @@
 
 namespace {
 
-constexpr int kMaxFuzzNodes = 144;   // 12 x 12
-constexpr int kMaxFuzzSteps = 12;
+constexpr int kMaxFuzzNodes = 144;       // 12 x 12: multigrid still has two levels
+constexpr int kFuzzNodeSteps = 300;      // steps = clamp(300 / nodes, 1, 6)
+constexpr int kMaxFuzzSteps = 6;
 constexpr int kMaxFuzzCalls = 16;
 
 [[noreturn]] void finding(const std::string& what) {
@@ -167,15 +169,18 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   // Any other exception escapes to libFuzzer, which reports it as a crash.
 
   if (scene.numNodes() > kMaxFuzzNodes) return 0;
-  scene.solver.max_iterations = std::min(scene.solver.max_iterations, 200);
-  scene.solver.newton_max_iterations = std::min(scene.solver.newton_max_iterations, 8);
-  scene.solver.max_halvings = std::min(scene.solver.max_halvings, 3);
+  scene.solver.max_iterations = std::min(scene.solver.max_iterations, 100);
+  scene.solver.newton_max_iterations = std::min(scene.solver.newton_max_iterations, 5);
+  scene.solver.max_halvings = std::min(scene.solver.max_halvings, 2);
+  const int steps = std::max(1, std::min(kMaxFuzzSteps, kFuzzNodeSteps / scene.numNodes()));
 
   cloth_sim::Simulation sim(scene);  // a valid scene must construct
   checkState(sim, "at t = 0");
   size_t next_call = 0;
-  for (int k = 0; k < kMaxFuzzSteps; ++k) {
-    if (next_call < in.calls.size()) applyCall(sim, in.calls[next_call++]);
+  for (int k = 0; k < steps; ++k) {
+    // The requests are spread over the steps, all of them made.
+    const size_t calls_due = in.calls.size() * static_cast<size_t>(k + 1) / steps;
+    while (next_call < calls_due) applyCall(sim, in.calls[next_call++]);
     checkState(sim, "after a request");
     const cloth_sim::VecX x_before = sim.positions(), v_before = sim.velocities();
     const double t_before = sim.time();
