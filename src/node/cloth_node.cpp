@@ -345,7 +345,8 @@ bool ClothNode::onReset(std_srvs::Trigger::Request& /*req*/,
   const Status reattached = applyTfPinParams();  // grabs the nodes where they now are
   res.success = true;
   res.message = "reset to the initial state";
-  if (!reattached) {
+  if (!reattached) {  // the reset happened, but the cloth is not held as the parameters say
+    res.success = false;
     res.message += "; " + reattached.message + " (not re-attached)";
     ROS_WARN("reset: %s", reattached.message.c_str());
   }
