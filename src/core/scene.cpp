@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -19,6 +20,26 @@
 #include <vector>
 
 namespace cloth_sim {
+
+namespace {
+std::string printable(const std::string& text) {
+  std::string out;
+  for (const char c : text) {
+    const auto byte = static_cast<unsigned char>(c);
+    if (byte < 0x20 || byte == 0x7f) {
+      char escaped[8];
+      std::snprintf(escaped, sizeof(escaped), "\\x%02x", byte);
+      out += escaped;
+    } else {
+      out += c;
+    }
+  }
+  return out;
+}
+}  // namespace
+
+SceneError::SceneError(const std::string& message) : std::runtime_error(printable(message)) {}
+
 namespace {
 
 constexpr long long kMaxNodes = 4000000;  // a typo like rows: 200000 fails here, not in malloc

@@ -184,3 +184,18 @@ TEST(HardeningCli, RunTooLongIsRefusedUpFrontWithTheLimit) {
 }
 
 }  // namespace
+
+namespace {
+
+// Found by the fuzzer: a --set key of NUL bytes gave "\0\0...solver: unknown
+// key", whose what() is empty (a C string ends at the first NUL).
+TEST(HardeningMessages, ControlCharactersInKeysAreEscapedNotTruncated) {
+  const std::string key = std::string(3, '\0') + "solver";
+  const std::string message = errorOf("cloth: {rows: 3, cols: 3}", {key + ".dt=0.1"});
+  ASSERT_FALSE(message.empty());
+  EXPECT_EQ(message.rfind("\\x00\\x00\\x00solver: unknown key", 0), 0u) << message;
+  const std::string tab = errorOf("cloth: {rows: 3, cols: 3}\nsolver: {\"d\\tt\": 1}");
+  EXPECT_EQ(tab.rfind("solver.d\\x09t: unknown key", 0), 0u) << tab;
+}
+
+}  // namespace
