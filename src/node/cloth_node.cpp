@@ -273,7 +273,10 @@ bool ClothNode::onPinNodes(cloth_sim::PinNodes::Request& req,
   const Status status = pinNodes(toLong(req.indices), positions, req.frame_id);
   res.success = status.ok;
   res.message = status.message;
-  if (!status) ROS_WARN("pin_nodes rejected: %s", status.message.c_str());
+  if (!status) {  // at most 5 lines a second: a flood of bad calls must not flood /rosout
+    window_.refused += 1;
+    ROS_WARN_THROTTLE(0.2, "pin_nodes rejected: %s", status.message.c_str());
+  }
   return true;
 }
 
@@ -303,7 +306,10 @@ bool ClothNode::onReleaseNodes(cloth_sim::ReleaseNodes::Request& req,
   }
   res.success = status.ok;
   res.message = status.message;
-  if (!status) ROS_WARN("release_nodes rejected: %s", status.message.c_str());
+  if (!status) {  // at most 5 lines a second: a flood of bad calls must not flood /rosout
+    window_.refused += 1;
+    ROS_WARN_THROTTLE(0.2, "release_nodes rejected: %s", status.message.c_str());
+  }
   return true;
 }
 
@@ -334,7 +340,10 @@ bool ClothNode::onSetStiffness(cloth_sim::SetStiffness::Request& req,
   }
   res.success = status.ok;
   res.message = status.message;
-  if (!status) ROS_WARN("set_stiffness rejected: %s", status.message.c_str());
+  if (!status) {  // at most 5 lines a second: a flood of bad calls must not flood /rosout
+    window_.refused += 1;
+    ROS_WARN_THROTTLE(0.2, "set_stiffness rejected: %s", status.message.c_str());
+  }
   return true;
 }
 
@@ -400,6 +409,7 @@ void ClothNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
   stat.addf("real-time factor", "%.3f", w.sim_time_s / wall);
   stat.addf("simulated time (s)", "%.3f", sim_.time());
   stat.add("rejected steps", w.rejected);
+  stat.add("refused requests", w.refused);
   stat.add("failures total", failures_total_);
   stat.add("pinned nodes", sim_.pinnedNodes().size());
   stat.add("tf pins", frame_pins_.size());
