@@ -16,7 +16,9 @@ namespace cloth_sim {
 /// "springs.stretch.stiffness: must be > 0, got -3".
 class SceneError : public std::runtime_error {
  public:
-  using std::runtime_error::runtime_error;
+  /// Control characters in the message (keys and values come from untrusted
+  /// text) are written as \xNN, so what() is the whole message, printable.
+  explicit SceneError(const std::string& message);
 };
 
 struct SpringGroupParams {

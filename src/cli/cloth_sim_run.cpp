@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "cloth_sim/json_text.hpp"
+#include "cloth_sim/limits.hpp"
 #include "cloth_sim/scene.hpp"
 #include "cloth_sim/simulation.hpp"
 
@@ -280,10 +281,17 @@ int run(const Options& opt) {
   const double dt = sim->dt();
   long total_steps = 0;
   if (opt.steps) {
+    const cloth_sim::Status work =
+        cloth_sim::checkWork("--steps", static_cast<double>(*opt.steps), sim->numNodes(),
+                             cloth_sim::kMaxRunNodeSteps);
+    if (!work) return badInput(work.message);
     total_steps = *opt.steps;
   } else {
     const double n = stepsForDuration(opt.duration.value_or(1.0), dt);
-    if (n > 1e12) return badInput("--duration: too long for solver.dt (" + jsonNumber(n) + " steps)");
+    const cloth_sim::Status work =
+        cloth_sim::checkWork("--duration (at solver.dt " + jsonNumber(dt) + " s)", n,
+                             sim->numNodes(), cloth_sim::kMaxRunNodeSteps);
+    if (!work) return badInput(work.message);
     total_steps = static_cast<long>(n);
   }
   const long every = opt.every.value_or(1);

@@ -4,11 +4,13 @@
 #include "cloth_sim/scene.hpp"
 #include "scene_yaml.hpp"
 
+#include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -19,6 +21,26 @@
 #include <vector>
 
 namespace cloth_sim {
+
+namespace {
+std::string printable(const std::string& text) {
+  std::string out;
+  for (const char c : text) {
+    const auto byte = static_cast<unsigned char>(c);
+    if (byte < 0x20 || byte == 0x7f) {
+      char escaped[8];
+      std::snprintf(escaped, sizeof(escaped), "\\x%02x", byte);
+      out += escaped;
+    } else {
+      out += c;
+    }
+  }
+  return out;
+}
+}  // namespace
+
+SceneError::SceneError(const std::string& message) : std::runtime_error(printable(message)) {}
+
 // Shared with scene_colliders.cpp through scene_yaml.hpp.
 namespace scene_yaml {
 
@@ -421,6 +443,51 @@ Scene sceneFromYaml(const YAML::Node& root) {
   return scene;
 }
 
+/// Records where each document starts (the parser's events are not needed).
+class DocumentStarts : public YAML::EventHandler {
+ public:
+  YAML::Mark start;
+  void OnDocumentStart(const YAML::Mark& mark) override { start = mark; }
+  void OnDocumentEnd() override {}
+  void OnNull(const YAML::Mark&, YAML::anchor_t) override {}
+  void OnAlias(const YAML::Mark&, YAML::anchor_t) override {}
+  void OnScalar(const YAML::Mark&, const std::string&, YAML::anchor_t,
+                const std::string&) override {}
+  void OnSequenceStart(const YAML::Mark&, const std::string&, YAML::anchor_t,
+                       YAML::EmitterStyle::value) override {}
+  void OnSequenceEnd() override {}
+  void OnMapStart(const YAML::Mark&, const std::string&, YAML::anchor_t,
+                  YAML::EmitterStyle::value) override {}
+  void OnMapEnd() override {}
+};
+
+/// The number of YAML documents in the text, without YAML::LoadAll: on text
+/// that yaml-cpp 0.7 cannot read past (",", ",a", ", x: 1", "[1],") its parser
+/// reports an empty document without consuming anything, again and again, and
+/// LoadAll loops forever allocating. A document that starts where the one
+/// before it started is that case: a syntax error at that place.
+int countDocuments(const std::string& text, const std::string& prefix) {
+  std::istringstream in(text);
+  YAML::Parser parser(in);
+  int count = 0;
+  int last_start = -1;
+  DocumentStarts starts;
+  while (parser.HandleNextDocument(starts)) {
+    if (starts.start.pos <= last_start) {
+      const size_t pos = static_cast<size_t>(starts.start.pos);
+      const std::string found =
+          pos < text.size() ? "'" + text.substr(pos, 1) + "'" : "the end of the text";
+      throw SceneError(prefix + "YAML syntax error at line " +
+                       std::to_string(starts.start.line + 1) + ", column " +
+                       std::to_string(starts.start.column + 1) + ": unexpected " + found +
+                       " (not the start of a YAML value)");
+    }
+    last_start = starts.start.pos;
+    ++count;
+  }
+  return count;
+}
+
 // ----------------------------------------------------------- overrides ----
 
 /// One step of an override's key path: a map key or a sequence index.
@@ -478,7 +545,11 @@ void applyOverride(YAML::Node root, const std::string& override_text) {
   }
   YAML::Node value;
   try {
-    value = YAML::Load(override_text.substr(eq + 1));
+    const std::string value_text = override_text.substr(eq + 1);
+    if (countDocuments(value_text, name + ": value: ") > 1) {
+      throw SceneError(name + ": the value holds more than one YAML document");
+    }
+    value = YAML::Load(value_text);
   } catch (const YAML::Exception& e) {
     throw SceneError(name + ": cannot parse the value as YAML: " + e.msg);
   }
@@ -521,12 +592,11 @@ Scene parseWithSource(const std::string& yaml_text, const std::vector<std::strin
   const std::string prefix = source.empty() ? "" : source + ": ";
   YAML::Node root;
   try {
-    const std::vector<YAML::Node> documents = YAML::LoadAll(yaml_text);
-    if (documents.size() > 1) {
-      throw SceneError(prefix + "expected one YAML document, got " +
-                       std::to_string(documents.size()));
+    const int documents = countDocuments(yaml_text, prefix);
+    if (documents > 1) {
+      throw SceneError(prefix + "expected one YAML document, got " + std::to_string(documents));
     }
-    root = documents.empty() ? YAML::Node(YAML::NodeType::Map) : documents.front();
+    root = documents == 0 ? YAML::Node(YAML::NodeType::Map) : YAML::Load(yaml_text);
   } catch (const YAML::Exception& e) {
     throw SceneError(prefix + "YAML syntax error at line " + std::to_string(e.mark.line + 1) +
                      ", column " + std::to_string(e.mark.column + 1) + ": " + e.msg);
@@ -673,7 +743,7 @@ void validateEvent(const SceneEvent& event, const Scene& scene, const std::strin
     }
     case SceneEvent::Kind::MovePin: {
       const std::string action = path + ".move_pin";
-      // Whether the node is pinned at that time is checked when the event runs.
+      // A node not pinned when the event runs is pinned by it (docs/scene.md).
       requireNode(event.index, num_nodes, action + ".index");
       if (!event.position && !event.velocity) {
         fail(action, "expected position, velocity (with duration) or both");

@@ -2,7 +2,11 @@
 
 #include <cmath>
 #include <cstdio>
+#include <limits>
+#include <map>
 #include <set>
+
+#include "cloth_sim/limits.hpp"
 
 namespace cloth_sim_ros {
 namespace {
@@ -49,7 +53,10 @@ std::vector<long> toLong(const std::vector<uint32_t>& indices) {
 
 int ClothNode::stepsPerTick(double tick_s, double dt) {
   // The small slack keeps an exact fit (1/50 s over 0.004 s) from rounding up.
-  return std::max(1, static_cast<int>(std::ceil(tick_s / dt - 1e-9)));
+  // Clamped before the cast (a huge count is refused by the constructor's work limit).
+  const double n = std::ceil(tick_s / dt - 1e-9);
+  if (!(n < std::numeric_limits<int>::max())) return std::numeric_limits<int>::max();
+  return std::max(1, static_cast<int>(n));
 }
 
 ClothNode::ClothNode(ros::NodeHandle nh, ros::NodeHandle private_nh, const NodeParams& params,
@@ -62,6 +69,13 @@ ClothNode::ClothNode(ros::NodeHandle nh, ros::NodeHandle private_nh, const NodeP
       frame_colliders_(tf_buffer_, params.frame_id, params.tf_timeout),
       updater_(nh, private_nh) {
   divideTick();
+  const Status work = cloth_sim::checkWork(
+      "rate", std::ceil(tick_s_ / scene.solver.dt - 1e-9), sim_.numNodes(),
+      cloth_sim::kMaxTickNodeSteps);
+  if (!work) {
+    throw ParamError(work.message + " in one tick of 1/rate = " + format("%g", tick_s_) +
+                     " s at solver.dt " + format("%g", scene.solver.dt) + " s");
+  }
   // Start-up tf pins need their frames: wait for each, then attach.
   for (size_t k = 0; k < params_.tf_pins.size(); ++k) {
     const TfPinParam& pin = params_.tf_pins[k];
@@ -171,6 +185,8 @@ void ClothNode::onTick(const ros::SteadyTimerEvent& /*event*/) {
   for (const auto& [frame, error] : lost) {
     if (frame_pins_.hasFrame(frame)) {
       ROS_WARN_THROTTLE(2.0, "tf pin: %s; its nodes hold their last position", error.c_str());
+      window_.tf_lost += 1;
+      window_.tf_error = error;
     }
   }
   drag_->update(tick_s_);
@@ -346,7 +362,10 @@ bool ClothNode::onPinNodes(cloth_sim::PinNodes::Request& req,
   const Status status = pinNodes(toLong(req.indices), positions, req.frame_id);
   res.success = status.ok;
   res.message = status.message;
-  if (!status) ROS_WARN("pin_nodes rejected: %s", status.message.c_str());
+  if (!status) {  // at most 5 lines a second: a flood of bad calls must not flood /rosout
+    window_.refused += 1;
+    ROS_WARN_THROTTLE(0.2, "pin_nodes rejected: %s", status.message.c_str());
+  }
   return true;
 }
 
@@ -378,13 +397,32 @@ bool ClothNode::onReleaseNodes(cloth_sim::ReleaseNodes::Request& req,
   }
   res.success = status.ok;
   res.message = status.message;
-  if (!status) ROS_WARN("release_nodes rejected: %s", status.message.c_str());
+  if (!status) {  // at most 5 lines a second: a flood of bad calls must not flood /rosout
+    window_.refused += 1;
+    ROS_WARN_THROTTLE(0.2, "release_nodes rejected: %s", status.message.c_str());
+  }
   return true;
 }
 
 bool ClothNode::onSetStiffness(cloth_sim::SetStiffness::Request& req,
                                cloth_sim::SetStiffness::Response& res) {
+  std::map<std::string, double> before;  // a jump by orders of magnitude is worth a warning
+  for (int type = 0; type < cloth_sim::kNumSpringTypes; ++type) {
+    const auto t = static_cast<cloth_sim::SpringType>(type);
+    if (sim_.group(t).present) before[cloth_sim::toString(t)] = sim_.group(t).stiffness;
+  }
   Status status = sim_.setStiffness(req.spring_type, req.stiffness, req.damping);
+  if (status) {
+    for (const auto& [name, old_k] : before) {
+      if (req.spring_type != "all" && req.spring_type != name) continue;
+      const double ratio = req.stiffness / old_k;
+      if (ratio > 1e3 || ratio < 1e-3) {
+        ROS_WARN("set_stiffness: %s stiffness changed %.3g times in one call (%g -> %g N/m); "
+                 "the solver may split steps until the cloth settles",
+                 name.c_str(), ratio, old_k, req.stiffness);
+      }
+    }
+  }
   if (status && status.message.empty()) {
     status.message = "set " + req.spring_type + " stiffness to " + format("%g", req.stiffness) +
                      " N/m" +
@@ -393,7 +431,10 @@ bool ClothNode::onSetStiffness(cloth_sim::SetStiffness::Request& req,
   }
   res.success = status.ok;
   res.message = status.message;
-  if (!status) ROS_WARN("set_stiffness rejected: %s", status.message.c_str());
+  if (!status) {  // at most 5 lines a second: a flood of bad calls must not flood /rosout
+    window_.refused += 1;
+    ROS_WARN_THROTTLE(0.2, "set_stiffness rejected: %s", status.message.c_str());
+  }
   return true;
 }
 
@@ -408,7 +449,8 @@ bool ClothNode::onReset(std_srvs::Trigger::Request& /*req*/,
   const Status reattached = applyTfPinParams();  // grabs the nodes where they now are
   res.success = true;
   res.message = "reset to the initial state";
-  if (!reattached) {
+  if (!reattached) {  // the reset happened, but the cloth is not held as the parameters say
+    res.success = false;
     res.message += "; " + reattached.message + " (not re-attached)";
     ROS_WARN("reset: %s", reattached.message.c_str());
   }
@@ -446,6 +488,9 @@ void ClothNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
   } else if (w.overruns > 0) {
     stat.summaryf(DiagnosticStatus::WARN, "%d tick(s) overran the %.1f ms period", w.overruns,
                   1e3 * tick_s_);
+  } else if (w.tf_lost > 0) {
+    stat.summaryf(DiagnosticStatus::WARN, "tf pin frame lost in %d tick(s): %s; its nodes hold "
+                  "their last position", w.tf_lost, w.tf_error.c_str());
   } else if (w.rejected > 0) {
     stat.summaryf(DiagnosticStatus::WARN, "recovered: %d step(s) rolled back and retried: %s",
                   w.rejected, w.failure.c_str());
@@ -470,6 +515,7 @@ void ClothNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
   stat.addf("real-time factor", "%.3f", w.sim_time_s / wall);
   stat.addf("simulated time (s)", "%.3f", sim_.time());
   stat.add("rejected steps", w.rejected);
+  stat.add("refused requests", w.refused);
   stat.add("failures total", failures_total_);
   stat.add("pinned nodes", sim_.pinnedNodes().size());
   stat.add("tf pins", frame_pins_.size());
@@ -481,6 +527,7 @@ void ClothNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
   stat.add("contacts", last_tick_.contacts);
   stat.addf("contact normal force (N)", "%.6g", last_tick_.contact_normal_force);
   stat.addf("max penetration (m)", "%.3g", sim_.maxPenetration());
+  stat.add("tf pins lost (ticks)", w.tf_lost);
   for (int type = 0; type < cloth_sim::kNumSpringTypes; ++type) {
     const cloth_sim::SpringGroup& group = sim_.group(static_cast<cloth_sim::SpringType>(type));
     if (!group.present) continue;

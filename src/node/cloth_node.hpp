@@ -63,6 +63,9 @@ class ClothNode {
     double residual_max = 0.0;
     double sim_time_s = 0.0;  ///< simulated time advanced
     std::string failure;      ///< latest failure or recovery note
+    int refused = 0;          ///< service requests refused (logged at most 5 per second)
+    int tf_lost = 0;          ///< ticks in which a tf pin frame had no recent transform
+    std::string tf_error;     ///< the latest of those
   };
 
   const cloth_sim::Model& model() const;

@@ -132,9 +132,11 @@ TEST(Requests, StifferClothStretchesLess) {
   Simulation soft(hangingCloth(8)), stiff(hangingCloth(8));
   ASSERT_TRUE(stiff.setStiffness("stretch", 5e5));
   for (int n = 0; n < 200; ++n) {
-    soft.step();
-    stiff.step();
+    ASSERT_TRUE(soft.step().ok);
+    ASSERT_TRUE(stiff.step().ok);
   }
+  ASSERT_NEAR(soft.time(), 200 * soft.dt(), 1e-9);
+  ASSERT_EQ(stiff.time(), soft.time());
   EXPECT_LT(maxStretchStrain(stiff), 0.02 * maxStretchStrain(soft));
 }
 
@@ -145,7 +147,9 @@ TEST(Reset, RestoresInitialStateExactly) {
   ASSERT_TRUE(sim.setStiffness("stretch", 100.0));
   ASSERT_TRUE(sim.release({0}));
   ASSERT_TRUE(sim.pin({20}));
-  for (int n = 0; n < 30; ++n) sim.step();
+  for (int n = 0; n < 30; ++n) ASSERT_TRUE(sim.step().ok);
+  ASSERT_GT(sim.time(), 0.0);
+  ASSERT_NE(sim.positions(), x0);  // it moved, so the reset has something to undo
   sim.reset();
   EXPECT_EQ(sim.positions(), x0);
   EXPECT_TRUE(sim.velocities().isZero(0.0));
@@ -155,9 +159,10 @@ TEST(Reset, RestoresInitialStateExactly) {
   // And it replays the same trajectory bit for bit.
   Simulation fresh(s);
   for (int n = 0; n < 10; ++n) {
-    sim.step();
-    fresh.step();
+    ASSERT_TRUE(sim.step().ok);
+    ASSERT_TRUE(fresh.step().ok);
   }
+  ASSERT_GT(sim.time(), 0.0);
   EXPECT_EQ(sim.positions(), fresh.positions());
 }
 
@@ -204,9 +209,10 @@ TEST(Events, AppliedBetweenStepsAtTheirTime) {
   release.release_all = true;
   s.events = {release};
   Simulation sim(s);
-  for (int n = 0; n < 10; ++n) sim.step();
+  for (int n = 0; n < 10; ++n) ASSERT_TRUE(sim.step().ok);
+  EXPECT_NEAR(sim.time(), 0.1, 1e-12);
   EXPECT_EQ(sim.pinnedNodes().size(), 2u);
-  sim.step();  // t = 0.1: the release applies before this step
+  ASSERT_TRUE(sim.step().ok);  // t = 0.1: the release applies before this step
   EXPECT_TRUE(sim.pinnedNodes().empty());
 }
 

@@ -8,6 +8,7 @@
 #include <std_srvs/Trigger.h>
 
 #include "cloth_messages.hpp"
+#include "cloth_node.hpp"
 #include "cloth_sim/PinNodes.h"
 #include "cloth_sim/ReleaseNodes.h"
 #include "cloth_sim/SetStiffness.h"
@@ -96,6 +97,7 @@ class ServicesTest : public ::testing::Test {
 struct Snapshot {
   std::vector<uint32_t> pinned;
   double sim_time = 0.0;
+  std::vector<Vec3> positions;
   std::map<std::string, std::string> stiffness;
 
   static Snapshot take(NodeClient& client) {
@@ -104,6 +106,7 @@ struct Snapshot {
     EXPECT_TRUE(client.waitState([](const ClothState&) { return true; }, 5.0, &s));
     snap.pinned = s.pinned;
     snap.sim_time = s.sim_time;
+    for (const auto& p : s.positions) snap.positions.push_back(toVec(p));
     diagnostic_msgs::DiagnosticStatus d;
     EXPECT_TRUE(client.waitDiagnostics(&d));
     for (const auto& kv : d.values) {
@@ -118,6 +121,22 @@ struct Snapshot {
   void expectUnchanged(NodeClient& client, const std::string& what) const {
     const Snapshot now = take(client);
     EXPECT_EQ(pinned, now.pinned) << what << " changed the pins";
+    // The whole cloth, pinned nodes (their targets) included, is where an
+    // untouched simulation of the scene is after the same time: the tests
+    // start from ~reset, and the node steps ticks of 1/30 s (services.test).
+    cloth_sim::Simulation reference(cloth_sim_test::smallScene());
+    const double tick = 1.0 / 30.0;
+    const int n = cloth_sim_ros::ClothNode::stepsPerTick(tick, reference.dt());
+    while (reference.time() < now.sim_time - 1e-9) {
+      for (int k = 0; k < n; ++k) ASSERT_TRUE(reference.step(tick / n).ok);
+    }
+    ASSERT_NEAR(reference.time(), now.sim_time, 1e-9);
+    ASSERT_EQ(now.positions.size(), static_cast<size_t>(reference.numNodes()));
+    double worst = 0.0;
+    for (int i = 0; i < reference.numNodes(); ++i) {
+      worst = std::max(worst, (now.positions[i] - reference.position(i)).norm());
+    }
+    EXPECT_LT(worst, 1e-9) << what << " moved the cloth or a pin target";
     EXPECT_GT(now.sim_time, sim_time) << what << " reset or stopped the simulation";
     EXPECT_EQ(stiffness, now.stiffness) << what << " changed stiffness or damping";
     EXPECT_FALSE(stiffness.empty());
@@ -352,6 +371,10 @@ TEST_F(ServicesTest, BadPinRequestsAreRefusedAndChangeNothing) {
       {{10}, {Vec3(kNaN, 0, 1)}, "", {"positions[0]", "nan"}},
       {{10}, {Vec3(0, kInf, 1)}, "", {"positions[0]", "inf"}},
       {{10}, {}, "no_such_frame", {"frame_id", "no_such_frame"}},
+      // A pinned node's target must not move when the request is refused.
+      {{7, 64}, {Vec3(0.3, 0.3, 0.3), Vec3(0, 0, 1)}, "", {"indices[1]", "64"}},
+      {{7, 10}, {Vec3(0.3, 0.3, 0.3), Vec3(kNaN, 0, 1)}, "", {"positions[1]", "nan"}},
+      {{7}, {Vec3(0.3, 0.3, 0.3)}, "no_such_frame", {"frame_id", "no_such_frame"}},
   };
   for (const Case& c : cases) {
     const auto res = pin(c.indices, c.positions, c.frame);

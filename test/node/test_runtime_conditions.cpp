@@ -1,0 +1,236 @@
+// rostest (runtime_conditions.test): bad conditions while the node runs. Each
+// leaves the node running, says what happened on /rosout and in diagnostics,
+// and never publishes a non-finite marker:
+//  - a tf frame that pins hang from stops arriving,
+//  - a reset in the middle of a drag (a pin on a moving frame),
+//  - stretch stiffness raised from 1e2 to 1e9 N/m in one call while the cloth moves,
+//  - a parameter of the wrong type set on the parameter server while it runs.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <functional>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include <geometry_msgs/TransformStamped.h>
+#include <ros/ros.h>
+#include <rosgraph_msgs/Log.h>
+#include <std_srvs/Trigger.h>
+#include <tf2_ros/transform_broadcaster.h>
+
+#include "cloth_sim/PinNodes.h"
+#include "cloth_sim/SetStiffness.h"
+#include "node_test_helpers.hpp"
+
+using cloth_sim::ClothState;
+using cloth_sim::Vec3;
+using cloth_sim_test::NodeClient;
+using visualization_msgs::Marker;
+
+namespace {
+
+/// Everything the node says and shows, checked as it arrives.
+class Watch {
+ public:
+  explicit Watch(ros::NodeHandle& nh) {
+    rosout_ = nh.subscribe("/rosout", 200, &Watch::onLog, this);
+    markers_ = nh.subscribe("/cloth_sim/cloth", 50, &Watch::onMarker, this);
+  }
+  void onLog(const rosgraph_msgs::Log::ConstPtr& log) {
+    if (log->name == "/cloth_sim") logs_.push_back(*log);
+  }
+  void onMarker(const Marker::ConstPtr& m) {
+    ++markers;
+    for (const auto& p : m->points) {
+      if (!std::isfinite(p.x + p.y + p.z)) ++non_finite_markers;
+    }
+  }
+  /// True once the node has logged, at `level` or above, a message holding `text`.
+  bool logged(uint8_t level, const std::string& text) const {
+    for (const auto& log : logs_) {
+      if (log.level >= level && log.msg.find(text) != std::string::npos) return true;
+    }
+    return false;
+  }
+  std::string allLogs() const {
+    std::string text;
+    for (const auto& log : logs_) text += "  [" + std::to_string(log.level) + "] " + log.msg + "\n";
+    return text;
+  }
+  long markers = 0, non_finite_markers = 0;
+
+ private:
+  ros::Subscriber rosout_, markers_;
+  std::vector<rosgraph_msgs::Log> logs_;
+};
+
+class Hand {
+ public:
+  void send(const Vec3& p) {
+    geometry_msgs::TransformStamped tf;
+    tf.header.stamp = ros::Time::now();
+    tf.header.frame_id = "world";
+    tf.child_frame_id = "hand";
+    tf.transform.translation.x = p.x();
+    tf.transform.translation.y = p.y();
+    tf.transform.translation.z = p.z();
+    tf.transform.rotation.w = 1.0;
+    broadcaster_.sendTransform(tf);
+  }
+  /// Broadcasts position(t) at 100 Hz for `duration` s, spinning.
+  void run(const std::function<Vec3(double)>& position, double duration) {
+    const ros::WallTime start = ros::WallTime::now();
+    while (ros::ok()) {
+      const double t = (ros::WallTime::now() - start).toSec();
+      if (t > duration) break;
+      send(position(t));
+      ros::spinOnce();
+      ros::WallDuration(0.01).sleep();
+    }
+  }
+
+ private:
+  tf2_ros::TransformBroadcaster broadcaster_;
+};
+
+const Vec3 kCorner(0.7, 0.0, 1.0);  // node 7 of the small scene
+
+class RuntimeConditions : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ASSERT_TRUE(ros::service::waitForService("/cloth_sim/reset", ros::Duration(30)));
+    ASSERT_TRUE(client_.reset());
+  }
+  void TearDown() override {
+    EXPECT_EQ(watch_.non_finite_markers, 0) << "a non-finite marker was published";
+    // Still running: a fresh state arrives after everything above.
+    ClothState state;
+    EXPECT_TRUE(client_.waitState([](const ClothState&) { return true; }, 5.0, &state))
+        << "the node stopped publishing";
+  }
+
+  bool pinToHand(uint32_t node) {
+    cloth_sim::PinNodes srv;
+    srv.request.indices = {node};
+    srv.request.frame_id = "hand";
+    return ros::service::call("/cloth_sim/pin_nodes", srv) && srv.response.success;
+  }
+
+  ros::NodeHandle nh_;
+  NodeClient client_;
+  Watch watch_{nh_};
+  Hand hand_;
+};
+
+TEST_F(RuntimeConditions, TfFrameThatDisappearsIsReportedAndItsPinsHold) {
+  hand_.run([](double) { return kCorner; }, 0.5);
+  ASSERT_TRUE(pinToHand(7));
+  hand_.run([](double t) { return kCorner + Vec3(0.0, -0.1 * t, 0.0); }, 1.0);
+  // The frame stops arriving: after tf_timeout (0.3 s) the pin holds.
+  ClothState before;
+  ASSERT_TRUE(client_.waitState([](const ClothState&) { return true; }, 5.0, &before));
+  cloth_sim_test::spinUntil([] { return false; }, 1.5);
+  // Diagnostics count the ticks with a lost frame and warn (the summary names
+  // the frame unless a worse condition, such as an overrun, takes its place).
+  diagnostic_msgs::DiagnosticStatus status;
+  ASSERT_TRUE(client_.waitDiagnostics(&status));
+  EXPECT_NE(NodeClient::value(status, "tf pins lost (ticks)"), "0") << status.message;
+  EXPECT_GE(status.level, diagnostic_msgs::DiagnosticStatus::WARN) << status.message;
+  if (status.level == diagnostic_msgs::DiagnosticStatus::WARN &&
+      status.message.find("overran") == std::string::npos) {
+    EXPECT_NE(status.message.find("tf pin frame lost"), std::string::npos) << status.message;
+    EXPECT_NE(status.message.find("'hand'"), std::string::npos) << status.message;
+  }
+  EXPECT_TRUE(watch_.logged(rosgraph_msgs::Log::WARN, "tf pin: frame_id: 'hand'"))
+      << watch_.allLogs();
+  ClothState a, b;
+  ASSERT_TRUE(client_.waitState([](const ClothState&) { return true; }, 5.0, &a));
+  cloth_sim_test::spinUntil([] { return false; }, 0.5);
+  ASSERT_TRUE(client_.waitState([](const ClothState&) { return true; }, 5.0, &b));
+  EXPECT_LT((cloth_sim_test::toVec(a.positions[7]) - cloth_sim_test::toVec(b.positions[7])).norm(),
+            1e-9)
+      << "the pin of the lost frame must hold";
+  EXPECT_GT(b.sim_time, a.sim_time);
+}
+
+TEST_F(RuntimeConditions, ResetDuringADragReturnsToTheStart) {
+  hand_.run([](double) { return kCorner; }, 0.5);
+  ASSERT_TRUE(pinToHand(7));
+  // A fast drag, then reset while it goes on.
+  hand_.run([](double t) { return kCorner + Vec3(0.0, -0.8 * t, 0.5 * t); }, 0.7);
+  std_srvs::Trigger reset;
+  ASSERT_TRUE(ros::service::call("/cloth_sim/reset", reset));
+  EXPECT_TRUE(reset.response.success) << reset.response.message;
+  hand_.run([](double t) { return kCorner + Vec3(0.0, -0.8 * (0.7 + t), 0.5 * (0.7 + t)); }, 0.7);
+  ClothState state;
+  ASSERT_TRUE(client_.waitState([](const ClothState&) { return true; }, 5.0, &state));
+  EXPECT_TRUE(state.ok) << state.failure;
+  // The drag's pin ended with the reset: only the scene's pins remain.
+  EXPECT_EQ(state.pinned, (std::vector<uint32_t>{0, 7}));
+  EXPECT_LT(state.sim_time, 1.0);
+}
+
+TEST_F(RuntimeConditions, StiffnessRaisedByTenMillionInOneCallWhileMoving) {
+  cloth_sim::SetStiffness soft;
+  soft.request.spring_type = "stretch";
+  soft.request.stiffness = 1e2;
+  soft.request.damping = -1.0;
+  ASSERT_TRUE(ros::service::call("/cloth_sim/set_stiffness", soft));
+  ASSERT_TRUE(soft.response.success) << soft.response.message;
+  cloth_sim_test::spinUntil([] { return false; }, 0.7);  // the soft cloth sags and moves
+  ClothState moving;
+  ASSERT_TRUE(client_.waitState([](const ClothState&) { return true; }, 5.0, &moving));
+  double speed = 0.0;
+  for (const auto& v : moving.velocities) speed = std::max(speed, std::sqrt(v.x * v.x + v.y * v.y + v.z * v.z));
+  ASSERT_GT(speed, 0.05) << "the cloth should be moving when the stiffness jumps";
+
+  cloth_sim::SetStiffness stiff = soft;
+  stiff.request.stiffness = 1e9;
+  ASSERT_TRUE(ros::service::call("/cloth_sim/set_stiffness", stiff));
+  EXPECT_TRUE(stiff.response.success) << stiff.response.message;
+  cloth_sim_test::spinUntil([] { return false; }, 2.0);
+  EXPECT_TRUE(watch_.logged(rosgraph_msgs::Log::WARN, "stretch stiffness changed 1e+07 times"))
+      << watch_.allLogs();
+  diagnostic_msgs::DiagnosticStatus status;
+  ASSERT_TRUE(client_.waitDiagnostics(&status));
+  EXPECT_EQ(NodeClient::value(status, "stretch stiffness (N/m)"), "1000000000");
+  ClothState after;
+  ASSERT_TRUE(client_.waitState([](const ClothState&) { return true; }, 5.0, &after));
+  for (const auto& p : after.positions) ASSERT_TRUE(std::isfinite(p.x + p.y + p.z));
+  // Whatever the solver did (recovered, or failed and held the last good
+  // state), the node said so; a failure is ERROR in diagnostics.
+  if (!after.ok) {
+    EXPECT_EQ(status.level, diagnostic_msgs::DiagnosticStatus::ERROR) << status.message;
+    EXPECT_TRUE(watch_.logged(rosgraph_msgs::Log::ERROR, "solver step failed")) << watch_.allLogs();
+  }
+  std::printf("[ runtime  ] stiffness 1e2 -> 1e9 while moving: state ok %d, diagnostics '%s'\n",
+              after.ok ? 1 : 0, status.message.c_str());
+}
+
+TEST_F(RuntimeConditions, WrongTypedParameterWhileRunningChangesNothing) {
+  // The node reads its parameters once, at start-up (a wrong type there stops
+  // it with the parameter named: bad_params.test). Set while it runs, a value
+  // of the wrong type is not read: the node runs on at its rate.
+  nh_.setParam("/cloth_sim/rate", std::string("fast"));
+  nh_.setParam("/cloth_sim/springs/stretch/stiffness", std::string("very"));
+  ClothState a, b;
+  ASSERT_TRUE(client_.waitState([](const ClothState&) { return true; }, 5.0, &a));
+  cloth_sim_test::spinUntil([] { return false; }, 1.0);
+  ASSERT_TRUE(client_.waitState([](const ClothState&) { return true; }, 5.0, &b));
+  EXPECT_NEAR(b.sim_time - a.sim_time, 1.0, 0.35);
+  std_srvs::Trigger reset;  // reset re-reads no parameter either
+  ASSERT_TRUE(ros::service::call("/cloth_sim/reset", reset));
+  EXPECT_TRUE(reset.response.success) << reset.response.message;
+  nh_.setParam("/cloth_sim/rate", 30.0);
+  nh_.setParam("/cloth_sim/springs/stretch/stiffness", 500.0);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  ::testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "test_runtime_conditions");
+  ros::NodeHandle nh;
+  return RUN_ALL_TESTS();
+}
