@@ -125,7 +125,7 @@ ClothNode::ClothNode(ros::NodeHandle nh, ros::NodeHandle private_nh, const NodeP
                                         [this](int node) { return !frame_pins_.attached(node); });
   clicked_sub_ = nh.subscribe("clicked_point", 5, &ClothNode::onClickedPoint, this);
   tuning_ = std::make_unique<LiveTuning>(ros::NodeHandle(private_nh, "tuning"), &sim_, scene_yaml,
-                                         [this] { divideTick(); });
+                                         tick_s_, [this] { divideTick(); });
 
   updater_.setHardwareID("none");
   updater_.add("simulation", this, &ClothNode::diagnose);

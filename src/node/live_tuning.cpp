@@ -4,6 +4,7 @@
 #include <cstdio>
 
 #include "cloth_sim/json_text.hpp"
+#include "cloth_sim/limits.hpp"
 #include "cloth_sim/scene.hpp"
 
 namespace cloth_sim_ros {
@@ -110,10 +111,11 @@ bool sameTunables(const Tuning& a, const Tuning& b) {
 }
 
 LiveTuning::LiveTuning(const ros::NodeHandle& nh, cloth_sim::Simulation* sim,
-                       std::string scene_yaml, std::function<void()> on_applied)
+                       std::string scene_yaml, double tick_s, std::function<void()> on_applied)
     : sim_(sim),
       scene_yaml_(std::move(scene_yaml)),
       on_applied_(std::move(on_applied)),
+      tick_s_(tick_s),
       server_(mutex_, nh) {
   // The scene decides the start: overwrite whatever the parameter server held.
   show(sim_->tuning());
@@ -144,6 +146,10 @@ void LiveTuning::onRequest(ClothSimConfig& config, uint32_t /*level*/) {
       status = Status::error("springs." + name + ".damping: the scene does not model the " +
                              name + " group, and only a scene decides what is modelled");
     }
+  }
+  if (status) {  // the node's bound on one tick's work, as at start-up
+    status = cloth_sim::checkWork("solver.dt", std::ceil(tick_s_ / wanted.solver.dt - 1e-9),
+                                  sim_->numNodes(), cloth_sim::kMaxTickNodeSteps);
   }
   if (status) status = sim_->retune(wanted);
   if (status) {

@@ -41,9 +41,10 @@ class LiveTuning {
  public:
   /// Serves on `nh` (the node uses ~tuning). Publishes the simulation's
   /// current settings at once, whatever the parameter server held before.
-  /// `on_applied` runs after every accepted change.
+  /// `on_applied` runs after every accepted change. A dt that would ask more
+  /// than cloth_sim::kMaxTickNodeSteps of one tick of `tick_s` is refused.
   LiveTuning(const ros::NodeHandle& nh, cloth_sim::Simulation* sim, std::string scene_yaml,
-             std::function<void()> on_applied);
+             double tick_s, std::function<void()> on_applied);
 
   /// Republishes the config if the simulation's settings changed by another
   /// way (~set_stiffness, ~reset, scene events). Cheap: call every tick.
@@ -56,6 +57,7 @@ class LiveTuning {
   cloth_sim::Simulation* sim_;
   std::string scene_yaml_;
   std::function<void()> on_applied_;
+  double tick_s_;
   boost::recursive_mutex mutex_;
   dynamic_reconfigure::Server<cloth_sim::ClothSimConfig> server_;
   cloth_sim::Tuning shown_;   ///< what the published config says
