@@ -1,11 +1,8 @@
 #include "frame_colliders.hpp"
 
-#include <cstdio>
 #include <set>
 
-#include <tf2/exceptions.h>
-#include <tf2_eigen/tf2_eigen.h>
-
+#include "frame_pins.hpp"
 #include "node_params.hpp"
 
 namespace cloth_sim_ros {
@@ -18,24 +15,8 @@ FrameColliders::FrameColliders(const tf2_ros::Buffer& buffer, std::string fixed_
     : buffer_(buffer), fixed_frame_(std::move(fixed_frame)), timeout_(timeout) {}
 
 bool FrameColliders::lookup(const std::string& frame, Pose* pose, std::string* error) const {
-  geometry_msgs::TransformStamped msg;
-  try {
-    msg = buffer_.lookupTransform(fixed_frame_, frame, ros::Time(0));
-  } catch (const tf2::TransformException& e) {
-    *error = "'" + frame + "' has no transform to '" + fixed_frame_ + "': " + e.what();
-    return false;
-  }
-  if (!msg.header.stamp.isZero()) {  // stamp zero: a static transform
-    const double age = (ros::Time::now() - msg.header.stamp).toSec();
-    if (age > timeout_) {
-      char buf[160];
-      std::snprintf(buf, sizeof(buf), "' last transform is %.2f s old (tf_timeout %.2f s)", age,
-                    timeout_);
-      *error = "'" + frame + buf;
-      return false;
-    }
-  }
-  const Eigen::Isometry3d t = tf2::transformToEigen(msg);
+  Eigen::Isometry3d t;
+  if (!lookupFresh(buffer_, fixed_frame_, frame, timeout_, &t, error)) return false;
   pose->rotation = t.rotation();
   pose->translation = t.translation();
   return true;

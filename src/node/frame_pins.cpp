@@ -10,28 +10,36 @@ namespace cloth_sim_ros {
 FramePins::FramePins(const tf2_ros::Buffer& buffer, std::string fixed_frame, double timeout)
     : buffer_(buffer), fixed_frame_(std::move(fixed_frame)), timeout_(timeout) {}
 
-bool FramePins::lookup(const std::string& frame, Eigen::Isometry3d* transform,
-                       std::string* error) const {
+bool lookupFresh(const tf2_ros::Buffer& buffer, const std::string& fixed_frame,
+                 const std::string& frame, double timeout, Eigen::Isometry3d* transform,
+                 std::string* error) {
   geometry_msgs::TransformStamped msg;
   try {
-    msg = buffer_.lookupTransform(fixed_frame_, frame, ros::Time(0));
+    msg = buffer.lookupTransform(fixed_frame, frame, ros::Time(0));
   } catch (const tf2::TransformException& e) {
-    *error = "frame_id: '" + frame + "' has no transform to '" + fixed_frame_ + "': " + e.what();
+    *error = "'" + frame + "' has no transform to '" + fixed_frame + "': " + e.what();
     return false;
   }
   // Stamp zero: a static transform, valid forever.
   if (!msg.header.stamp.isZero()) {
     const double age = (ros::Time::now() - msg.header.stamp).toSec();
-    if (age > timeout_) {
+    if (age > timeout) {
       char buf[160];
       std::snprintf(buf, sizeof(buf), "' last transform is %.2f s old (tf_timeout %.2f s)", age,
-                    timeout_);
-      *error = "frame_id: '" + frame + buf;
+                    timeout);
+      *error = "'" + frame + buf;
       return false;
     }
   }
   *transform = tf2::transformToEigen(msg);
   return true;
+}
+
+bool FramePins::lookup(const std::string& frame, Eigen::Isometry3d* transform,
+                       std::string* error) const {
+  if (lookupFresh(buffer_, fixed_frame_, frame, timeout_, transform, error)) return true;
+  *error = "frame_id: " + *error;
+  return false;
 }
 
 void FramePins::attach(int node, const std::string& frame, const cloth_sim::Vec3& offset,

@@ -13,6 +13,13 @@
 
 namespace cloth_sim_ros {
 
+/// Latest transform fixed_frame <- frame from `buffer`, refused when older
+/// than `timeout` s (static frames never are); on failure `error` says why,
+/// starting with the quoted frame. Shared by tf pins and tf colliders.
+bool lookupFresh(const tf2_ros::Buffer& buffer, const std::string& fixed_frame,
+                 const std::string& frame, double timeout, Eigen::Isometry3d* transform,
+                 std::string* error);
+
 class FramePins {
  public:
   /// `fixed_frame` is the simulation's frame; a frame whose latest transform
