@@ -62,12 +62,16 @@ int ClothNode::stepsPerTick(double tick_s, double dt) {
 ClothNode::ClothNode(ros::NodeHandle nh, ros::NodeHandle private_nh, const NodeParams& params,
                      const cloth_sim::Scene& scene, const std::string& scene_yaml)
     : params_(params),
+      private_nh_(private_nh),
       sim_(scene),
       tick_s_(1.0 / params.rate),
       tf_listener_(tf_buffer_, nh),
       frame_pins_(tf_buffer_, params.frame_id, params.tf_timeout),
       frame_colliders_(tf_buffer_, params.frame_id, params.tf_timeout),
-      updater_(nh, private_nh) {
+      // The updater reads its own ~diagnostic_period unchecked (a NaN there throws out of
+      // the tick): it gets a namespace of its own, and the node keeps the schedule.
+      updater_(nh, ros::NodeHandle(private_nh, "diagnostic_updater")),
+      diag_period_(params.diagnostic_period) {
   divideTick();
   const Status work = cloth_sim::checkWork(
       "rate", std::ceil(tick_s_ / scene.solver.dt - 1e-9), sim_.numNodes(),
@@ -130,6 +134,8 @@ ClothNode::ClothNode(ros::NodeHandle nh, ros::NodeHandle private_nh, const NodeP
   updater_.setHardwareID("none");
   updater_.add("simulation", this, &ClothNode::diagnose);
   window_.start = ros::SteadyTime::now();
+  next_diagnostics_ = window_.start + ros::WallDuration(diag_period_);
+  rereadParams();  // subscribes to ~diagnostic_period here, not inside a tick
 
   if (model().triangles.empty()) {
     ROS_INFO("cloth has a single column: ~cloth and ~strain carry no triangles");
@@ -229,7 +235,51 @@ void ClothNode::onTick(const ros::SteadyTimerEvent& /*event*/) {
   }
   if (!tick.failure.empty()) window_.failure = tick.failure;
   last_tick_ = tick;
-  updater_.update();
+  rereadParams();
+  updateDiagnostics(ros::SteadyTime::now());
+}
+
+void ClothNode::rereadParams() {
+  XmlRpc::XmlRpcValue value;
+  if (!private_nh_.getParamCached("diagnostic_period", value)) value = XmlRpc::XmlRpcValue();
+  // Compared as XML (type and text): NaN == NaN there, so a bad value is said once.
+  const std::string seen = value.valid() ? value.toXml() : std::string();
+  if (seen == diag_period_seen_) return;  // unchanged since the last tick
+  diag_period_seen_ = seen;
+  if (!value.valid()) {  // deleted: the last good period stays
+    if (!refused_param_.empty()) {
+      ROS_INFO("parameter ~diagnostic_period removed; diagnostics stay every %g s", diag_period_);
+    }
+    refused_param_.clear();
+    return;
+  }
+  double period = diag_period_;
+  try {
+    period = readDiagnosticPeriod(value);
+  } catch (const ParamError& e) {
+    refused_param_ = std::string("~") + e.what() + "; diagnostics stay every " +
+                     format("%g", diag_period_) + " s";
+    ROS_WARN("bad parameter %s", refused_param_.c_str());
+    return;
+  }
+  if (period != diag_period_ || !refused_param_.empty()) {
+    ROS_INFO("parameter ~diagnostic_period: diagnostics every %g s (was %g s)", period,
+             diag_period_);
+  }
+  refused_param_.clear();
+  const ros::SteadyTime sooner = ros::SteadyTime::now() + ros::WallDuration(period);
+  if (sooner < next_diagnostics_) next_diagnostics_ = sooner;
+  diag_period_ = period;
+}
+
+void ClothNode::updateDiagnostics(const ros::SteadyTime& now) {
+  if (now < next_diagnostics_) return;
+  next_diagnostics_ = now + ros::WallDuration(diag_period_);
+  try {
+    updater_.force_update();
+  } catch (const std::exception& e) {  // never out of the tick: the cloth runs on
+    ROS_ERROR_THROTTLE(10.0, "diagnostics not published: %s", e.what());
+  }
 }
 
 void ClothNode::publish(const ros::Time& stamp, TickStats tick) {
@@ -494,10 +544,14 @@ void ClothNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
   } else if (w.rejected > 0) {
     stat.summaryf(DiagnosticStatus::WARN, "recovered: %d step(s) rolled back and retried: %s",
                   w.rejected, w.failure.c_str());
+  } else if (!refused_param_.empty()) {
+    stat.summaryf(DiagnosticStatus::WARN, "bad parameter %s", refused_param_.c_str());
   } else {
     stat.summary(DiagnosticStatus::OK, "running");
   }
   stat.add("rate (Hz)", params_.rate);
+  stat.addf("diagnostic period (s)", "%g", diag_period_);
+  stat.add("bad parameter", refused_param_.empty() ? std::string("none") : refused_param_);
   stat.addf("achieved rate (Hz)", "%.2f", w.ticks / wall);
   stat.add("overruns", w.overruns);
   stat.add("overruns total", overruns_total_);

@@ -103,9 +103,16 @@ class ClothNode {
                              const std::string& frame);
   /// Applies the tf_pins parameter; errors name the tf_pins entry.
   cloth_sim::Status applyTfPinParams();
+  /// Re-reads the one parameter the node reads while running, ~diagnostic_period
+  /// (cached: the master pushes changes). A bad value is refused with a warning
+  /// naming it and shown in diagnostics; the last good period stays.
+  void rereadParams();
+  /// Publishes diagnostics every diag_period_ (the node's schedule, not the updater's).
+  void updateDiagnostics(const ros::SteadyTime& now);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat);
 
   NodeParams params_;
+  ros::NodeHandle private_nh_;
   cloth_sim::Simulation sim_;
   double tick_s_;
   int steps_per_tick_ = 1;
@@ -132,6 +139,11 @@ class ClothNode {
   visualization_msgs::MarkerArray collider_markers_;
   std::vector<cloth_sim::Pose> published_collider_poses_;  ///< as last on ~colliders
   bool strain_valid_ = false;  ///< strain_marker_ holds a finite state
+
+  double diag_period_;                     ///< s; ~diagnostic_period as last accepted
+  ros::SteadyTime next_diagnostics_;
+  std::string diag_period_seen_;           ///< the value last read (XML), good or bad
+  std::string refused_param_;              ///< why the value on the server is not used; empty: none
 
   Window window_;
   long overruns_total_ = 0;

@@ -178,7 +178,15 @@ NodeParams readNodeParams(const XmlRpcValue& private_ns) {
         readNumber(ns["drag_pick_distance"], "drag_pick_distance",
                    "must be a finite number > 0 (m)", [](double x) { return x > 0.0; });
   }
+  if (ns.hasMember("diagnostic_period")) {
+    p.diagnostic_period = readDiagnosticPeriod(ns["diagnostic_period"]);
+  }
   return p;
+}
+
+double readDiagnosticPeriod(const XmlRpcValue& value) {
+  return readNumber(value, "diagnostic_period", "must be a finite number > 0 and <= 3600 (s)",
+                    [](double x) { return x > 0.0 && x <= kMaxDiagnosticPeriod; });
 }
 
 }  // namespace cloth_sim_ros

@@ -38,10 +38,10 @@ struct NodeParams {
   double tf_wait = 10.0;            ///< start-up wait for tf_pins frames, s
   double drag_radius = 0.0;         ///< a drag takes the nodes this close to the picked one, m
   double drag_pick_distance = 0.1;  ///< a clicked point farther from every node makes no handle, m
+  double diagnostic_period = 1.0;   ///< s between diagnostics; the one parameter re-read at runtime
 };
 
 /// Private-namespace keys that belong to the node, not to the scene.
-/// (diagnostic_period is read by diagnostic_updater.)
 const std::set<std::string>& nodeParamKeys();
 
 /// The default ~cloth colour, an opaque orange (kept distinct from TF axes).
@@ -50,5 +50,13 @@ std_msgs::ColorRGBA defaultClothColor();
 /// Reads the node's parameters from the private-namespace tree; absent ones
 /// keep their defaults. Throws ParamError naming the parameter.
 NodeParams readNodeParams(const XmlRpc::XmlRpcValue& private_ns);
+
+/// Upper bound of ~diagnostic_period, s (ros::Duration's range is far above it).
+constexpr double kMaxDiagnosticPeriod = 3600.0;
+
+/// ~diagnostic_period's value: a finite number in (0, kMaxDiagnosticPeriod] s.
+/// Used at start-up and when the node re-reads it while running. Throws
+/// ParamError naming diagnostic_period.
+double readDiagnosticPeriod(const XmlRpc::XmlRpcValue& value);
 
 }  // namespace cloth_sim_ros

@@ -137,6 +137,7 @@ TEST(NodeParams, DefaultsAndValidValues) {
   EXPECT_EQ(defaults.color.a, 1.0f);
   EXPECT_TRUE(defaults.publish_strain);
   EXPECT_TRUE(defaults.tf_pins.empty());
+  EXPECT_EQ(defaults.diagnostic_period, 1.0);
 
   XmlRpcValue t = demoTree();
   XmlRpcValue pin;
@@ -195,6 +196,21 @@ TEST(NodeParams, BadValuesNameTheParameter) {
   t["tf_pins"][0]["frame_id"] = std::string("g");
   t["tf_pins"][0]["frame"] = std::string("g");
   expectParamError(t, "tf_pins[0].frame: unknown key");
+  t = XmlRpcValue();
+  t["diagnostic_period"] = 0.25;
+  EXPECT_EQ(cloth_sim_ros::readNodeParams(t).diagnostic_period, 0.25);
+  t["diagnostic_period"] = 2;  // an integer is a number too
+  EXPECT_EQ(cloth_sim_ros::readNodeParams(t).diagnostic_period, 2.0);
+  t["diagnostic_period"] = std::string("abc");
+  expectParamError(t, "diagnostic_period: must be a finite number > 0 and <= 3600 (s), got \"abc\"");
+  t["diagnostic_period"] = 0.0;
+  expectParamError(t, "diagnostic_period:");
+  t["diagnostic_period"] = std::numeric_limits<double>::quiet_NaN();
+  expectParamError(t, "diagnostic_period:");
+  t["diagnostic_period"] = 1e12;  // beyond ros::Duration's range: the updater would throw
+  expectParamError(t, "diagnostic_period:");
+  t["diagnostic_period"] = doubles({1, 2});
+  expectParamError(t, "diagnostic_period:");
 }
 
 }  // namespace

@@ -4,7 +4,9 @@
 //  - a tf frame that pins hang from stops arriving,
 //  - a reset in the middle of a drag (a pin on a moving frame),
 //  - stretch stiffness raised from 1e2 to 1e9 N/m in one call while the cloth moves,
-//  - a parameter of the wrong type set on the parameter server while it runs.
+//  - a parameter of the wrong type set on the parameter server while it runs:
+//    ~diagnostic_period (re-read while running: refused and named) and the
+//    parameters read only at start-up (not read again, ~reset included).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -52,6 +54,14 @@ class Watch {
       if (log.level >= level && log.msg.find(text) != std::string::npos) return true;
     }
     return false;
+  }
+  /// How many of the node's messages, at `level` or above, hold `text`.
+  int count(uint8_t level, const std::string& text) const {
+    int n = 0;
+    for (const auto& log : logs_) {
+      if (log.level >= level && log.msg.find(text) != std::string::npos) ++n;
+    }
+    return n;
   }
   std::string allLogs() const {
     std::string text;
@@ -208,22 +218,134 @@ TEST_F(RuntimeConditions, StiffnessRaisedByTenMillionInOneCallWhileMoving) {
               after.ok ? 1 : 0, status.message.c_str());
 }
 
-TEST_F(RuntimeConditions, WrongTypedParameterWhileRunningChangesNothing) {
-  // The node reads its parameters once, at start-up (a wrong type there stops
-  // it with the parameter named: bad_params.test). Set while it runs, a value
-  // of the wrong type is not read: the node runs on at its rate.
+/// The parts of a state a bad parameter must leave alone: the cloth keeps
+/// stepping at its rate with the same pins, and shows finite points.
+void expectRunsOn(NodeClient& client) {
+  ClothState a, b;
+  ASSERT_TRUE(client.waitState([](const ClothState&) { return true; }, 5.0, &a));
+  cloth_sim_test::spinUntil([] { return false; }, 1.0);
+  ASSERT_TRUE(client.waitState([](const ClothState&) { return true; }, 5.0, &b));
+  EXPECT_NEAR(b.sim_time - a.sim_time, 1.0, 0.35) << "the cloth no longer runs at its rate";
+  EXPECT_TRUE(b.ok) << b.failure;
+  EXPECT_EQ(b.pinned, (std::vector<uint32_t>{0, 7}));
+  for (const auto& p : b.positions) ASSERT_TRUE(std::isfinite(p.x + p.y + p.z));
+}
+
+TEST_F(RuntimeConditions, WrongTypedParameterReadWhileRunningIsRefusedAndNamed) {
+  // ~diagnostic_period is the one parameter the node reads while it runs
+  // (README, Reliability). A bad value there is refused: a warning on /rosout
+  // naming it, a WARN in diagnostics, the last good period kept.
+  diagnostic_msgs::DiagnosticStatus status;
+  ASSERT_TRUE(client_.waitDiagnostics(&status));
+  EXPECT_EQ(NodeClient::value(status, "bad parameter"), "none");
+  EXPECT_EQ(NodeClient::value(status, "diagnostic period (s)"), "0.5");
+  const std::string stiffness = NodeClient::value(status, "stretch stiffness (N/m)");
+
+  struct Bad {
+    XmlRpc::XmlRpcValue value;
+    std::string shown;  // as the warning quotes it
+  };
+  XmlRpc::XmlRpcValue list;
+  list.setSize(2);
+  list[0] = 1;
+  list[1] = 2;
+  const std::vector<Bad> bad = {{XmlRpc::XmlRpcValue(std::string("abc")), "got \"abc\""},
+                                {list, "got [1, 2]"},
+                                {XmlRpc::XmlRpcValue(-1.0), "got -1"},
+                                {XmlRpc::XmlRpcValue(1e12), "got 1000000000000"},
+                                {XmlRpc::XmlRpcValue(std::nan("")), "got .nan"}};
+  for (const Bad& b : bad) {
+    nh_.setParam("/cloth_sim/diagnostic_period", b.value);
+    const std::string expected = "bad parameter ~diagnostic_period: must be a finite number > 0 "
+                                 "and <= 3600 (s), " + b.shown;
+    EXPECT_TRUE(cloth_sim_test::spinUntil(
+        [&] { return watch_.logged(rosgraph_msgs::Log::WARN, expected); }, 5.0))
+        << "expected a warning '" << expected << "', got:\n" << watch_.allLogs();
+    // Diagnostics go on at the last good period and say why the value is not used.
+    ASSERT_TRUE(client_.waitDiagnostics(&status, 3.0)) << "diagnostics stopped";
+    const std::string why = NodeClient::value(status, "bad parameter");
+    EXPECT_NE(why.find("~diagnostic_period: must be a finite number"), std::string::npos) << why;
+    EXPECT_NE(why.find(b.shown), std::string::npos) << why;
+    EXPECT_NE(why.find("diagnostics stay every 0.5 s"), std::string::npos) << why;
+    EXPECT_EQ(NodeClient::value(status, "diagnostic period (s)"), "0.5");
+    EXPECT_GE(status.level, diagnostic_msgs::DiagnosticStatus::WARN) << status.message;
+    if (status.level == diagnostic_msgs::DiagnosticStatus::WARN &&
+        status.message.find("overran") == std::string::npos &&
+        status.message.find("recovered") == std::string::npos) {
+      EXPECT_NE(status.message.find("bad parameter ~diagnostic_period"), std::string::npos)
+          << status.message;
+    }
+    // The simulation is as it was.
+    EXPECT_EQ(NodeClient::value(status, "stretch stiffness (N/m)"), stiffness);
+    // Said once per value, not every tick (the node checks it every tick).
+    EXPECT_EQ(watch_.count(rosgraph_msgs::Log::WARN, expected), 1) << watch_.allLogs();
+  }
+  expectRunsOn(client_);
+
+  // Two diagnostics in a row, 0.5 s apart (the kept period), not stopped.
+  diagnostic_msgs::DiagnosticStatus first;
+  ASSERT_TRUE(client_.waitDiagnostics(&first, 3.0));
+  const ros::WallTime t0 = ros::WallTime::now();
+  ASSERT_TRUE(client_.waitDiagnostics(&status, 3.0));
+  EXPECT_LT((ros::WallTime::now() - t0).toSec(), 1.5);
+
+  // A good value again is taken, said, and the warning ends.
+  nh_.setParam("/cloth_sim/diagnostic_period", 0.25);
+  EXPECT_TRUE(cloth_sim_test::spinUntil(
+      [&] {
+        return watch_.logged(rosgraph_msgs::Log::INFO,
+                             "parameter ~diagnostic_period: diagnostics every 0.25 s (was 0.5 s)");
+      },
+      5.0))
+      << watch_.allLogs();
+  ASSERT_TRUE(client_.waitDiagnostics(&status, 3.0));
+  ASSERT_TRUE(client_.waitDiagnostics(&status, 3.0));
+  EXPECT_EQ(NodeClient::value(status, "bad parameter"), "none");
+  EXPECT_EQ(NodeClient::value(status, "diagnostic period (s)"), "0.25");
+  nh_.setParam("/cloth_sim/diagnostic_period", 0.5);
+  ASSERT_TRUE(cloth_sim_test::spinUntil(
+      [&] {
+        return watch_.logged(rosgraph_msgs::Log::INFO,
+                             "parameter ~diagnostic_period: diagnostics every 0.5 s (was 0.25 s)");
+      },
+      5.0))
+      << watch_.allLogs();
+}
+
+TEST_F(RuntimeConditions, WrongTypedParametersReadOnlyAtStartUpChangeNothing) {
+  // Every other parameter is read once, at start-up (a wrong type there stops
+  // the node with the parameter named: bad_params.test); ~reset goes back to
+  // the scene and the ~tf_pins read then, not to the parameter server. Set
+  // while it runs, a value of the wrong type is not read: the node runs on.
+  const std::vector<std::string> keys = {"/cloth_sim/rate", "/cloth_sim/springs/stretch/stiffness",
+                                         "/cloth_sim/pins", "/cloth_sim/tf_pins",
+                                         "/cloth_sim/frame_id"};
+  std::vector<XmlRpc::XmlRpcValue> saved(keys.size());
+  std::vector<bool> had(keys.size());
+  for (size_t k = 0; k < keys.size(); ++k) had[k] = nh_.getParam(keys[k], saved[k]);
   nh_.setParam("/cloth_sim/rate", std::string("fast"));
   nh_.setParam("/cloth_sim/springs/stretch/stiffness", std::string("very"));
-  ClothState a, b;
-  ASSERT_TRUE(client_.waitState([](const ClothState&) { return true; }, 5.0, &a));
-  cloth_sim_test::spinUntil([] { return false; }, 1.0);
-  ASSERT_TRUE(client_.waitState([](const ClothState&) { return true; }, 5.0, &b));
-  EXPECT_NEAR(b.sim_time - a.sim_time, 1.0, 0.35);
-  std_srvs::Trigger reset;  // reset re-reads no parameter either
-  ASSERT_TRUE(ros::service::call("/cloth_sim/reset", reset));
-  EXPECT_TRUE(reset.response.success) << reset.response.message;
-  nh_.setParam("/cloth_sim/rate", 30.0);
-  nh_.setParam("/cloth_sim/springs/stretch/stiffness", 500.0);
+  nh_.setParam("/cloth_sim/pins", std::string("all of them"));
+  nh_.setParam("/cloth_sim/tf_pins", 3);
+  nh_.setParam("/cloth_sim/frame_id", 1.5);
+  expectRunsOn(client_);
+  ClothState initial;
+  visualization_msgs::Marker marker;
+  ASSERT_TRUE(client_.reset(&initial, &marker));  // ~reset re-reads no parameter either
+  EXPECT_EQ(initial.pinned, (std::vector<uint32_t>{0, 7}));
+  EXPECT_EQ(marker.header.frame_id, "world");
+  expectRunsOn(client_);
+  diagnostic_msgs::DiagnosticStatus status;
+  ASSERT_TRUE(client_.waitDiagnostics(&status));
+  EXPECT_EQ(NodeClient::value(status, "bad parameter"), "none");
+  EXPECT_EQ(NodeClient::value(status, "stretch stiffness (N/m)"), "500");
+  for (size_t k = 0; k < keys.size(); ++k) {
+    if (had[k]) {
+      nh_.setParam(keys[k], saved[k]);
+    } else {
+      nh_.deleteParam(keys[k]);
+    }
+  }
 }
 
 }  // namespace
