@@ -65,8 +65,9 @@ bool ClothNode::onGrasp(cloth_sim::Grasp::Request& req, cloth_sim::Grasp::Respon
   if (status) {
     res.indices.assign(nodes.begin(), nodes.end());
     ROS_INFO("grasp: %s", status.message.c_str());
-  } else {
-    ROS_WARN("grasp refused: %s", status.message.c_str());
+  } else {  // at most 5 lines a second: a flood of bad calls must not flood /rosout
+    window_.refused += 1;
+    ROS_WARN_THROTTLE(0.2, "grasp refused: %s", status.message.c_str());
   }
   return true;
 }
@@ -94,7 +95,10 @@ bool ClothNode::onReleaseGrasp(cloth_sim::ReleaseGrasp::Request& req,
   }
   res.success = status.ok;
   res.message = status.message;
-  if (!status) ROS_WARN("release_grasp refused: %s", status.message.c_str());
+  if (!status) {  // at most 5 lines a second, as above
+    window_.refused += 1;
+    ROS_WARN_THROTTLE(0.2, "release_grasp refused: %s", status.message.c_str());
+  }
   return true;
 }
 
