@@ -10,12 +10,11 @@
 #include <map>
 #include <set>
 
-#include <geometry_msgs/TransformStamped.h>
 #include <ros/ros.h>
-#include <tf2_ros/transform_broadcaster.h>
 #include <visualization_msgs/MarkerArray.h>
 
 #include "node_test_helpers.hpp"
+#include "tf_test_helpers.hpp"
 
 using cloth_sim::ClothState;
 using cloth_sim::Vec3;
@@ -32,38 +31,6 @@ const Vec3 kStart(0.35, -0.35, 0.8);        // under the cloth's middle, clear o
 const Vec3 kVelocity(0.0, 0.0, 0.2);        // m/s, up through the cloth's plane
 constexpr double kPushTime = 1.5;           // to z = 1.1: the cloth is pushed 0.22 m up
 const std::vector<int> kMiddle = {27, 28, 35, 36};  // within 0.071 m of the sphere's axis
-
-/// Broadcasts "test_pusher" in "world" while spinning.
-class Pusher {
- public:
-  void send(const Vec3& p) {
-    geometry_msgs::TransformStamped tf;
-    tf.header.stamp = ros::Time::now();
-    tf.header.frame_id = "world";
-    tf.child_frame_id = "test_pusher";
-    tf.transform.translation.x = p.x();
-    tf.transform.translation.y = p.y();
-    tf.transform.translation.z = p.z();
-    tf.transform.rotation.w = 1.0;
-    broadcaster_.sendTransform(tf);
-    last_ = p;
-  }
-  void run(const std::function<Vec3(double)>& position, double duration) {
-    const ros::WallTime start = ros::WallTime::now();
-    while (ros::ok()) {
-      const double t = (ros::WallTime::now() - start).toSec();
-      if (t > duration) break;
-      send(position(t));
-      ros::spinOnce();
-      ros::WallDuration(0.005).sleep();
-    }
-  }
-  const Vec3& last() const { return last_; }
-
- private:
-  tf2_ros::TransformBroadcaster broadcaster_;
-  Vec3 last_ = kStart;
-};
 
 const Marker* find(const MarkerArray& array, const std::string& ns, int id) {
   for (const Marker& m : array.markers) {
@@ -86,7 +53,7 @@ MarkerArray latestColliders(ros::NodeHandle& nh) {
 Vec3 position(const Marker& m) { return {m.pose.position.x, m.pose.position.y, m.pose.position.z}; }
 
 TEST(Colliders, ATfAttachedSpherePushesTheClothAndShowsOnColliders) {
-  Pusher pusher;
+  cloth_sim_test::FrameBroadcaster pusher("test_pusher", 0.005);
   cloth_sim_test::NodeClient client;
   std::vector<ClothState::ConstPtr> states;
   std::vector<MarkerArray::ConstPtr> arrays;
@@ -101,10 +68,10 @@ TEST(Colliders, ATfAttachedSpherePushesTheClothAndShowsOnColliders) {
   // The node waits for the frame at start-up: broadcast until it runs.
   const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(60.0);
   while (ros::ok() && states.empty() && ros::WallTime::now() < deadline) {
-    pusher.run([](double) { return kStart; }, 0.1);
+    pusher.runPosition([](double) { return kStart; }, 0.1);
   }
   ASSERT_FALSE(states.empty()) << "no ~state: the node did not start";
-  pusher.run([](double) { return kStart; }, 0.5);
+  pusher.runPosition([](double) { return kStart; }, 0.5);
 
   // ~colliders (latched): one marker per collider, a capsule as three.
   ASSERT_FALSE(arrays.empty()) << "nothing on ~colliders";
@@ -142,9 +109,9 @@ TEST(Colliders, ATfAttachedSpherePushesTheClothAndShowsOnColliders) {
   states.clear();
   arrays.clear();
   const ros::Time t0 = ros::Time::now();
-  pusher.run([](double t) { return kStart + kVelocity * t; }, kPushTime);
+  pusher.runPosition([](double t) { return kStart + kVelocity * t; }, kPushTime);
   const Vec3 end = kStart + kVelocity * kPushTime;
-  pusher.run([&](double) { return end; }, 1.0);
+  pusher.runPosition([&](double) { return end; }, 1.0);
   ASSERT_GT(states.size(), 50u);
 
   // No node ever inside the sphere (where ~colliders showed it at that tick).
@@ -218,7 +185,7 @@ TEST(Colliders, ATfAttachedSpherePushesTheClothAndShowsOnColliders) {
   EXPECT_LT((position(*find(held, "pusher", 0)) - end).norm(), 1e-9);
 
   // Back: the sphere follows again; ~reset puts it on the frame, the cloth flat.
-  pusher.run([](double) { return kStart; }, 1.0);
+  pusher.runPosition([](double) { return kStart; }, 1.0);
   ClothState s;
   ASSERT_TRUE(client.reset(&s));
   for (int i : kMiddle) EXPECT_NEAR(s.positions[i].z, 1.0, 1e-12);

@@ -6,14 +6,12 @@
 #include <limits>
 
 #include <Eigen/Geometry>
-#include <geometry_msgs/TransformStamped.h>
 #include <ros/ros.h>
-#include <tf2_eigen/tf2_eigen.h>
-#include <tf2_ros/transform_broadcaster.h>
 
 #include "cloth_sim/Grasp.h"
 #include "cloth_sim/ReleaseGrasp.h"
 #include "node_test_helpers.hpp"
+#include "tf_test_helpers.hpp"
 
 using cloth_sim::ClothState;
 using cloth_sim::Vec3;
@@ -30,28 +28,6 @@ Eigen::Isometry3d pose(const Vec3& at, double yaw) {
   t.rotate(Eigen::AngleAxisd(yaw, Vec3::UnitZ()));
   return t;
 }
-
-/// Broadcasts "test_gripper" in "world" while spinning.
-class Gripper {
- public:
-  void run(const std::function<Eigen::Isometry3d(double)>& at, double duration) {
-    const ros::WallTime start = ros::WallTime::now();
-    while (ros::ok()) {
-      const double t = (ros::WallTime::now() - start).toSec();
-      if (t > duration) break;
-      geometry_msgs::TransformStamped tf = tf2::eigenToTransform(at(t));
-      tf.header.stamp = ros::Time::now();
-      tf.header.frame_id = "world";
-      tf.child_frame_id = "test_gripper";
-      broadcaster_.sendTransform(tf);
-      ros::spinOnce();
-      ros::WallDuration(0.005).sleep();
-    }
-  }
-
- private:
-  tf2_ros::TransformBroadcaster broadcaster_;
-};
 
 cloth_sim::Grasp::Response grasp(const std::string& frame, const Vec3& point, double radius) {
   cloth_sim::Grasp srv;
@@ -76,7 +52,7 @@ TEST(Grasp, CarriesTheGraspedNodesWithTheFrameAndDropsThemOnRelease) {
   ClothState s;
   ASSERT_TRUE(client.waitSimTime(1.0, &s));  // hanging
   const Eigen::Isometry3d start = pose(toVec(s.positions[27]) + Vec3(0.0, 0.0, 0.03), 0.0);
-  Gripper gripper;
+  cloth_sim_test::FrameBroadcaster gripper("test_gripper", 0.005);
   gripper.run([&](double) { return start; }, 1.0);  // the node's tf buffer fills
 
   // Refused requests name the field and change nothing.
@@ -149,7 +125,7 @@ TEST(Grasp, ALostFrameLetsGo) {
   ClothState s;
   ASSERT_TRUE(client.waitSimTime(0.5, &s));
   const Eigen::Isometry3d at = pose(toVec(s.positions[36]), 0.0);
-  Gripper gripper;
+  cloth_sim_test::FrameBroadcaster gripper("test_gripper", 0.005);
   gripper.run([&](double) { return at; }, 0.8);
   const auto res = grasp("test_gripper", Vec3::Zero(), 0.3);  // the cloth swings meanwhile
   ASSERT_TRUE(res.success) << res.message;

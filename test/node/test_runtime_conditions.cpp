@@ -15,15 +15,14 @@
 #include <string>
 #include <vector>
 
-#include <geometry_msgs/TransformStamped.h>
 #include <ros/ros.h>
 #include <rosgraph_msgs/Log.h>
 #include <std_srvs/Trigger.h>
-#include <tf2_ros/transform_broadcaster.h>
 
 #include "cloth_sim/PinNodes.h"
 #include "cloth_sim/SetStiffness.h"
 #include "node_test_helpers.hpp"
+#include "tf_test_helpers.hpp"
 
 using cloth_sim::ClothState;
 using cloth_sim::Vec3;
@@ -75,35 +74,6 @@ class Watch {
   std::vector<rosgraph_msgs::Log> logs_;
 };
 
-class Hand {
- public:
-  void send(const Vec3& p) {
-    geometry_msgs::TransformStamped tf;
-    tf.header.stamp = ros::Time::now();
-    tf.header.frame_id = "world";
-    tf.child_frame_id = "hand";
-    tf.transform.translation.x = p.x();
-    tf.transform.translation.y = p.y();
-    tf.transform.translation.z = p.z();
-    tf.transform.rotation.w = 1.0;
-    broadcaster_.sendTransform(tf);
-  }
-  /// Broadcasts position(t) at 100 Hz for `duration` s, spinning.
-  void run(const std::function<Vec3(double)>& position, double duration) {
-    const ros::WallTime start = ros::WallTime::now();
-    while (ros::ok()) {
-      const double t = (ros::WallTime::now() - start).toSec();
-      if (t > duration) break;
-      send(position(t));
-      ros::spinOnce();
-      ros::WallDuration(0.01).sleep();
-    }
-  }
-
- private:
-  tf2_ros::TransformBroadcaster broadcaster_;
-};
-
 const Vec3 kCorner(0.7, 0.0, 1.0);  // node 7 of the small scene
 
 class RuntimeConditions : public ::testing::Test {
@@ -130,13 +100,13 @@ class RuntimeConditions : public ::testing::Test {
   ros::NodeHandle nh_;
   NodeClient client_;
   Watch watch_{nh_};
-  Hand hand_;
+  cloth_sim_test::FrameBroadcaster hand_{"hand", 0.01};  // hand in world, 100 Hz
 };
 
 TEST_F(RuntimeConditions, TfFrameThatDisappearsIsReportedAndItsPinsHold) {
-  hand_.run([](double) { return kCorner; }, 0.5);
+  hand_.runPosition([](double) { return kCorner; }, 0.5);
   ASSERT_TRUE(pinToHand(7));
-  hand_.run([](double t) { return kCorner + Vec3(0.0, -0.1 * t, 0.0); }, 1.0);
+  hand_.runPosition([](double t) -> Vec3 { return kCorner + Vec3(0.0, -0.1 * t, 0.0); }, 1.0);
   // The frame stops arriving: after tf_timeout (0.3 s) the pin holds.
   ClothState before;
   ASSERT_TRUE(client_.waitState([](const ClothState&) { return true; }, 5.0, &before));
@@ -165,14 +135,15 @@ TEST_F(RuntimeConditions, TfFrameThatDisappearsIsReportedAndItsPinsHold) {
 }
 
 TEST_F(RuntimeConditions, ResetDuringADragReturnsToTheStart) {
-  hand_.run([](double) { return kCorner; }, 0.5);
+  hand_.runPosition([](double) { return kCorner; }, 0.5);
   ASSERT_TRUE(pinToHand(7));
   // A fast drag, then reset while it goes on.
-  hand_.run([](double t) { return kCorner + Vec3(0.0, -0.8 * t, 0.5 * t); }, 0.7);
+  hand_.runPosition([](double t) -> Vec3 { return kCorner + Vec3(0.0, -0.8 * t, 0.5 * t); }, 0.7);
   std_srvs::Trigger reset;
   ASSERT_TRUE(ros::service::call("/cloth_sim/reset", reset));
   EXPECT_TRUE(reset.response.success) << reset.response.message;
-  hand_.run([](double t) { return kCorner + Vec3(0.0, -0.8 * (0.7 + t), 0.5 * (0.7 + t)); }, 0.7);
+  hand_.runPosition(
+      [](double t) -> Vec3 { return kCorner + Vec3(0.0, -0.8 * (0.7 + t), 0.5 * (0.7 + t)); }, 0.7);
   ClothState state;
   ASSERT_TRUE(client_.waitState([](const ClothState&) { return true; }, 5.0, &state));
   EXPECT_TRUE(state.ok) << state.failure;

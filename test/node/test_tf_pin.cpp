@@ -4,13 +4,12 @@
 
 #include <cmath>
 
-#include <geometry_msgs/TransformStamped.h>
 #include <ros/ros.h>
 #include <std_srvs/Trigger.h>
-#include <tf2_ros/transform_broadcaster.h>
 
 #include "cloth_sim/PinNodes.h"
 #include "node_test_helpers.hpp"
+#include "tf_test_helpers.hpp"
 
 using cloth_sim::ClothState;
 using cloth_sim::Vec3;
@@ -23,37 +22,6 @@ constexpr double kTick = 1.0 / 30.0;          // tf_pin.test rate
 constexpr double kBroadcastPeriod = 0.005;    // 200 Hz
 const Vec3 kStart(0.7, 0.0, 1.0);             // node 7's initial position
 const Vec3 kVelocity(0.0, -0.15, 0.2);        // m/s
-
-/// Broadcasts frame "test_gripper" in "world" while spinning.
-class Gripper {
- public:
-  void send(const Vec3& p) {
-    geometry_msgs::TransformStamped tf;
-    tf.header.stamp = ros::Time::now();
-    tf.header.frame_id = "world";
-    tf.child_frame_id = "test_gripper";
-    tf.transform.translation.x = p.x();
-    tf.transform.translation.y = p.y();
-    tf.transform.translation.z = p.z();
-    tf.transform.rotation.w = 1.0;
-    broadcaster_.sendTransform(tf);
-  }
-  /// Holds `position(t)` (t from now) for `duration` s, spinning; stops early when done().
-  void run(const std::function<Vec3(double)>& position, double duration,
-           const std::function<bool()>& done = [] { return false; }) {
-    const ros::WallTime start = ros::WallTime::now();
-    while (ros::ok()) {
-      const double t = (ros::WallTime::now() - start).toSec();
-      if (t > duration || done()) break;
-      send(position(t));
-      ros::spinOnce();
-      ros::WallDuration(kBroadcastPeriod).sleep();
-    }
-  }
-
- private:
-  tf2_ros::TransformBroadcaster broadcaster_;
-};
 
 cloth_sim::PinNodes::Response pinToGripper(const std::vector<uint32_t>& indices,
                                            const std::vector<Vec3>& offsets) {
@@ -69,8 +37,8 @@ TEST(TfPin, PinnedNodesFollowAMovingFrameWithinOneTick) {
   cloth_sim_test::NodeClient client;
   ASSERT_TRUE(ros::service::waitForService("/cloth_sim/pin_nodes", ros::Duration(30)));
   ASSERT_TRUE(client.reset());
-  Gripper gripper;
-  gripper.run([](double) { return kStart; }, 1.0);  // the node's tf buffer fills
+  cloth_sim_test::FrameBroadcaster gripper("test_gripper", kBroadcastPeriod);
+  gripper.runPosition([](double) { return kStart; }, 1.0);  // the node's tf buffer fills
 
   // Node 7 at the frame's origin; node 6 grabbed where it is (empty positions).
   auto res = pinToGripper({7}, {Vec3::Zero()});
@@ -92,8 +60,8 @@ TEST(TfPin, PinnedNodesFollowAMovingFrameWithinOneTick) {
   states.clear();
   const ros::Time t0 = ros::Time::now();
   const double duration = 2.0;
-  gripper.run([](double t) -> Vec3 { return kStart + kVelocity * t; }, duration);
-  gripper.run([](double) -> Vec3 { return kStart + kVelocity * 2.0; }, 0.5);  // and rest
+  gripper.runPosition([](double t) -> Vec3 { return kStart + kVelocity * t; }, duration);
+  gripper.runPosition([](double) -> Vec3 { return kStart + kVelocity * 2.0; }, 0.5);  // and rest
 
   int checked = 0;
   for (const auto& state : states) {
@@ -127,7 +95,7 @@ TEST(TfPin, PinnedNodesFollowAMovingFrameWithinOneTick) {
   bool arrived = false;
   double arrival = 0.0;
   states.clear();
-  gripper.run([&](double) { return jump; }, 2.0, [&] {
+  gripper.runPosition([&](double) { return jump; }, 2.0, [&] {
     for (const auto& st : states) {
       if ((toVec(st->positions[7]) - jump).norm() < 1e-12) {
         arrival = (ros::WallTime::now() - jumped).toSec();
@@ -157,7 +125,7 @@ TEST(TfPin, PinnedNodesFollowAMovingFrameWithinOneTick) {
 
   // Reset drops the attachment: the frame moves, node 7 stays at its scene pin.
   ASSERT_TRUE(client.reset(&s));
-  gripper.run([&](double t) -> Vec3 { return jump + kVelocity * t; }, 1.0);
+  gripper.runPosition([&](double t) -> Vec3 { return jump + kVelocity * t; }, 1.0);
   ASSERT_TRUE(client.waitState([](const ClothState&) { return true; }, 5.0, &s));
   EXPECT_EQ(toVec(s.positions[7]), kStart);
   EXPECT_EQ(s.pinned, (std::vector<uint32_t>{0, 7}));

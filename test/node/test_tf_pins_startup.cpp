@@ -8,12 +8,11 @@
 #include <cmath>
 
 #include <Eigen/Geometry>
-#include <geometry_msgs/TransformStamped.h>
 #include <ros/ros.h>
 #include <std_srvs/Trigger.h>
-#include <tf2_ros/transform_broadcaster.h>
 
 #include "node_test_helpers.hpp"
+#include "tf_test_helpers.hpp"
 
 using cloth_sim::ClothState;
 using cloth_sim::Vec3;
@@ -29,42 +28,15 @@ Eigen::Matrix3d aboutZ(double degrees) {
   return Eigen::AngleAxisd(degrees * M_PI / 180.0, Vec3::UnitZ()).toRotationMatrix();
 }
 
-class Hand {
- public:
-  void send(const Vec3& p, double degrees) {
-    geometry_msgs::TransformStamped tf;
-    tf.header.stamp = ros::Time::now();
-    tf.header.frame_id = "world";
-    tf.child_frame_id = "test_hand";
-    tf.transform.translation.x = p.x();
-    tf.transform.translation.y = p.y();
-    tf.transform.translation.z = p.z();
-    const Eigen::Quaterniond q(aboutZ(degrees));
-    tf.transform.rotation.x = q.x();
-    tf.transform.rotation.y = q.y();
-    tf.transform.rotation.z = q.z();
-    tf.transform.rotation.w = q.w();
-    broadcaster_.sendTransform(tf);
-  }
-  /// Broadcasts pose(t) at 100 Hz for `duration` s while spinning.
-  void run(const std::function<std::pair<Vec3, double>(double)>& pose, double duration,
-           const std::function<bool()>& done = [] { return false; }) {
-    const ros::WallTime start = ros::WallTime::now();
-    while (ros::ok()) {
-      const double t = (ros::WallTime::now() - start).toSec();
-      if (t > duration || done()) break;
-      const auto p = pose(t);
-      send(p.first, p.second);
-      ros::spinOnce();
-      ros::WallDuration(0.01).sleep();
-    }
-  }
+/// The test_hand frame: at `p`, turned `degrees` about z.
+Eigen::Isometry3d handPose(const Vec3& p, double degrees) {
+  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+  t.translation() = p;
+  t.linear() = aboutZ(degrees);
+  return t;
+}
 
- private:
-  tf2_ros::TransformBroadcaster broadcaster_;
-};
-
-Hand* hand = nullptr;
+cloth_sim_test::FrameBroadcaster* hand = nullptr;  // test_hand in world, 100 Hz
 cloth_sim_test::NodeClient* client = nullptr;
 Vec3 held_at;  // the frame's position at the end of the first test
 double held_degrees = 0.0;
@@ -75,9 +47,9 @@ bool latest(ClothState* s) {
 
 TEST(TfPinsStartup, PinsFollowTheRotatedFrame) {
   // The node waits (tf_wait) for the frame at start-up: broadcast until it runs.
-  hand->run([](double) { return std::make_pair(kOrigin, 90.0); }, 60.0,
+  hand->run([](double) { return handPose(kOrigin, 90.0); }, 60.0,
             [] { return ros::service::exists("/cloth_sim/reset", false); });
-  hand->run([](double) { return std::make_pair(kOrigin, 90.0); }, 1.0);
+  hand->run([](double) { return handPose(kOrigin, 90.0); }, 1.0);
   ClothState s;
   ASSERT_TRUE(latest(&s));
   EXPECT_EQ(s.pinned, (std::vector<uint32_t>{0, 7, 56}));
@@ -86,15 +58,15 @@ TEST(TfPinsStartup, PinsFollowTheRotatedFrame) {
   EXPECT_LT((toVec(s.positions[56]) - kNode56Start).norm(), 1e-9);
 
   // Turn the frame about its origin from 90 to 180 degrees, then move it.
-  hand->run([](double t) { return std::make_pair(kOrigin, 90.0 + 45.0 * t); }, 2.0);
-  hand->run([](double) { return std::make_pair(kOrigin, 180.0); }, 0.5);
+  hand->run([](double t) { return handPose(kOrigin, 90.0 + 45.0 * t); }, 2.0);
+  hand->run([](double) { return handPose(kOrigin, 180.0); }, 0.5);
   ASSERT_TRUE(latest(&s));
   EXPECT_LT((toVec(s.positions[7]) - kOrigin).norm(), 1e-9);
   EXPECT_LT((toVec(s.positions[56]) - (kOrigin + aboutZ(180.0) * kOffset56)).norm(), 1e-9)
       << "node 56 must turn with the frame";
   held_at = kOrigin + Vec3(0.0, -0.2, 0.1);
   held_degrees = 180.0;
-  hand->run([](double) { return std::make_pair(held_at, held_degrees); }, 1.0);
+  hand->run([](double) { return handPose(held_at, held_degrees); }, 1.0);
   ASSERT_TRUE(latest(&s));
   EXPECT_LT((toVec(s.positions[7]) - held_at).norm(), 1e-9);
   EXPECT_LT((toVec(s.positions[56]) - (held_at + aboutZ(180.0) * kOffset56)).norm(), 1e-9);
@@ -102,15 +74,15 @@ TEST(TfPinsStartup, PinsFollowTheRotatedFrame) {
 }
 
 TEST(TfPinsStartup, ResetAppliesTheTfPinsAgain) {
-  hand->run([](double) { return std::make_pair(held_at, held_degrees); }, 0.3);
+  hand->run([](double) { return handPose(held_at, held_degrees); }, 0.3);
   std_srvs::Trigger reset;
   ASSERT_TRUE(ros::service::call("/cloth_sim/reset", reset));
   EXPECT_TRUE(reset.response.success) << reset.response.message;
   // Node 7 is grabbed where it starts (kOrigin), node 56 jumps to its offset;
   // both then follow the frame.
   const Vec3 d(0.0, 0.0, 0.15);
-  hand->run([&](double) { return std::make_pair(held_at, held_degrees); }, 0.5);
-  hand->run([&](double) { return std::make_pair(Vec3(held_at + d), held_degrees); }, 1.0);
+  hand->run([&](double) { return handPose(held_at, held_degrees); }, 0.5);
+  hand->run([&](double) { return handPose(Vec3(held_at + d), held_degrees); }, 1.0);
   ClothState s;
   ASSERT_TRUE(latest(&s));
   EXPECT_EQ(s.pinned, (std::vector<uint32_t>{0, 7, 56}));
@@ -143,7 +115,7 @@ int main(int argc, char** argv) {
   ::testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, "test_tf_pins_startup");
   ros::NodeHandle nh;
-  Hand h;
+  cloth_sim_test::FrameBroadcaster h("test_hand", 0.01);
   cloth_sim_test::NodeClient c;
   hand = &h;
   client = &c;
