@@ -105,6 +105,14 @@ struct Scene {
   } contact;
   std::vector<ColliderParams> colliders;  ///< none: no contact code runs
 
+  /// The cloth against itself (self_collision.hpp). Disabled: no
+  /// self-collision code runs at all.
+  struct SelfCollision {
+    bool enabled = false;
+    double thickness = 0.002;  ///< m, > 0 when enabled: non-adjacent parts keep this far apart
+    double friction = 0.2;     ///< Coulomb mu >= 0 between layers
+  } self_collision;
+
   struct Initial {
     Vec3 velocity = Vec3::Zero();  ///< uniform initial velocity, m/s
     double stretch = 1.0;  ///< scale about the centroid at t = 0

@@ -12,6 +12,7 @@
 #include "cloth_sim/forces.hpp"
 #include "cloth_sim/model.hpp"
 #include "cloth_sim/scene.hpp"
+#include "cloth_sim/self_collision.hpp"
 #include "cloth_sim/step_stats.hpp"
 #include "cloth_sim/stepper.hpp"
 #include "cloth_sim/types.hpp"
@@ -86,6 +87,11 @@ class Simulation {
   /// steps until then sweep that motion, and friction sees it). The jump to
   /// `pose` itself is not swept: a node it lands inside is pushed out.
   Status setColliderPose(int index, const Pose& pose, const Vec3& velocity = Vec3::Zero());
+  /// Replaces the state (3n positions and velocities, finite): tests and
+  /// tools start from shapes the scene cannot describe (a folded cloth).
+  /// Pins are retargeted to their nodes' new positions, contact and the
+  /// multistep history are forgotten. Defined in simulation_state.cpp.
+  Status setState(const VecX& x, const VecX& v);
   /// What the simulation runs with now (stiffness changes and retune included).
   Tuning tuning() const;
   /// Changes the tunable settings between steps. Validated as a scene file is
@@ -114,6 +120,9 @@ class Simulation {
   std::vector<int> contactNodes() const { return stepper_.contacts().contactNodes(); }
   /// Deepest any node went inside surface + thickness, over every step (m).
   double maxPenetration() const { return max_penetration_; }
+  /// Smallest distance between non-adjacent parts of the cloth at the end of
+  /// every step so far (m; infinity without self_collision or before a near pair).
+  double minSelfDistance() const { return min_self_distance_; }
 
   // --- measurements ---
   double kineticEnergy() const;
@@ -163,6 +172,9 @@ class Simulation {
   std::vector<ColliderState> collider_states_;
   CollidersOverStep collider_step_;  ///< reused per step
   double max_penetration_ = 0.0;
+  SelfCollision self_collision_;
+  SelfCollisionMasses self_masses_;  ///< reused per step
+  double min_self_distance_ = std::numeric_limits<double>::infinity();
   size_t next_event_ = 0;
   double work_in_total_ = 0.0;
   double pending_work_ = 0.0;  ///< work by events since the last step
@@ -179,6 +191,7 @@ class Simulation {
     std::vector<std::pair<int, PinTarget>> pins;
     std::vector<ColliderState> colliders;
     double max_penetration = 0.0;
+    double min_self_distance = 0.0;
   } checkpoint_;
 };
 

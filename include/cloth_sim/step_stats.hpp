@@ -1,6 +1,7 @@
 // What one step (or one call to Simulation::step) reports.
 #pragma once
 
+#include <limits>
 #include <string>
 
 namespace cloth_sim {
@@ -35,6 +36,12 @@ struct StepStats {
   double max_penetration = 0.0;  ///< deepest inside surface + thickness at the step's end, m
   double contact_work = 0.0;     ///< work of the contact forces on the cloth, J
   int contact_passes = 0;        ///< solves until the contact set was consistent
+  // self-collision (zero / infinity when disabled)
+  int self_contacts = 0;  ///< non-adjacent pairs closer than the thickness at the step's end
+  /// smallest distance between non-adjacent parts at the step's end, m
+  /// (exact below the thickness; infinity when no pair is near)
+  double min_self_distance = std::numeric_limits<double>::infinity();
+  double self_collision_s = 0.0;  ///< time in the self-collision filter (in wall_time_s)
   bool ok = true;             ///< false: the step failed and the state was rolled back
   std::string failure;        ///< why, when !ok (or what recovery fixed)
 };

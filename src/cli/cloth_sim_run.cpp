@@ -207,6 +207,8 @@ struct RunStats {
   int contacts = 0;                   ///< at the final step
   double contact_normal_force = 0.0;  ///< at the final step, N
   long contact_passes = 0;
+  int self_contacts = 0;  ///< at the final step
+  double self_collision_s = 0.0;
   std::optional<std::string> failure;
 
   void add(const cloth_sim::StepStats& s) {
@@ -222,6 +224,8 @@ struct RunStats {
     contacts = s.contacts;
     contact_normal_force = s.contact_normal_force;
     contact_passes += s.contact_passes;
+    self_contacts = s.self_contacts;
+    self_collision_s += s.self_collision_s;
   }
   double perStep(double total) const { return steps > 0 ? total / steps : 0.0; }
 };
@@ -254,6 +258,11 @@ bool writeStats(const std::string& path, const RunStats& r, const cloth_sim::Sim
   std::fprintf(f, "  \"max_penetration\": %s,\n", jsonNumber(sim.maxPenetration()).c_str());
   std::fprintf(f, "  \"contact_passes_mean\": %s,\n",
                jsonNumber(r.perStep(static_cast<double>(r.contact_passes))).c_str());
+  // Self-collision: 0 and null without it.
+  std::fprintf(f, "  \"self_contacts\": %d,\n", r.self_contacts);
+  std::fprintf(f, "  \"min_self_distance\": %s,\n", jsonNumber(sim.minSelfDistance()).c_str());
+  std::fprintf(f, "  \"self_collision_ms_per_step\": %s,\n",
+               jsonNumber(1e3 * r.perStep(r.self_collision_s)).c_str());
   std::fprintf(f, "  \"failure\": %s,\n", r.failure ? jsonString(*r.failure).c_str() : "null");
   std::fprintf(f, "  \"method\": %s,\n", jsonString(cloth_sim::toString(scene.solver.method)).c_str());
   std::fprintf(f, "  \"dt\": %s,\n", jsonNumber(scene.solver.dt).c_str());

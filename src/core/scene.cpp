@@ -421,7 +421,7 @@ SceneEvent readEvent(const YAML::Node& node, const std::string& path) {
 Scene sceneFromYaml(const YAML::Node& root) {
   const Fields top(root, "",
                    {"cloth", "springs", "gravity", "air_drag", "pins", "solver", "initial",
-                    "contact", "colliders", "events"});
+                    "contact", "colliders", "self_collision", "events"});
   Scene scene;
   readCloth(top.get("cloth"), &scene.cloth);
   readSprings(top.get("springs"), &scene);
@@ -431,6 +431,7 @@ Scene sceneFromYaml(const YAML::Node& root) {
   readSolver(top.get("solver"), &scene.solver);
   readInitial(top.get("initial"), &scene.initial);
   readContact(top.get("contact"), top.get("colliders"), &scene);
+  readSelfCollision(top.get("self_collision"), &scene);
 
   const YAML::Node events = top.get("events");
   if (events.IsDefined() && !events.IsNull()) {
@@ -810,6 +811,7 @@ void validateScene(const Scene& scene) {
   validateSolver(scene.solver);
   validateInitial(scene.initial);
   validateContact(scene);
+  validateSelfCollision(scene);
   validateEvents(scene);
 }
 

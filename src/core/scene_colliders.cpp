@@ -153,6 +153,33 @@ void validateContact(const Scene& scene) {
   }
 }
 
+void readSelfCollision(const YAML::Node& node, Scene* scene) {
+  const Fields f(node, "self_collision", {"enabled", "thickness", "friction"});
+  Scene::SelfCollision& sc = scene->self_collision;
+  if (f.has("enabled")) sc.enabled = readBool(f.get("enabled"), f.path("enabled"));
+  if (f.has("thickness")) sc.thickness = readNumber(f.get("thickness"), f.path("thickness"));
+  if (f.has("friction")) sc.friction = readNumber(f.get("friction"), f.path("friction"));
+}
+
+void validateSelfCollision(const Scene& scene) {
+  const Scene::SelfCollision& sc = scene.self_collision;
+  // Checked even when disabled: a bad value is a mistake either way.
+  requireNonNegative(sc.thickness, "self_collision.thickness");
+  requireNonNegative(sc.friction, "self_collision.friction");
+  if (!sc.enabled) return;
+  // The proximity response and the CCD's separation both scale with it: at 0
+  // two layers could rest exactly on each other, where "intersecting" and
+  // "touching" cannot be told apart.
+  if (!(sc.thickness > 0.0)) {
+    fail("self_collision.thickness", "must be > 0 when self_collision is enabled, got " +
+                                         formatNumber(sc.thickness));
+  }
+  if (scene.solver.method == Method::SymplecticEuler) {
+    fail("solver.method", "symplectic_euler has no self-collision: self_collision needs "
+                          "implicit_euler, newton or bdf2");
+  }
+}
+
 void validateMoveCollider(const SceneEvent& event, const Scene& scene, const std::string& path) {
   bool found = false;
   for (const ColliderParams& c : scene.colliders) found = found || c.name == event.collider;

@@ -41,6 +41,10 @@ void readContact(const YAML::Node& contact, const YAML::Node& colliders, Scene* 
 void readMoveCollider(const YAML::Node& body, const std::string& action_path, SceneEvent* event);
 /// Checks contact, colliders (and that no symplectic_euler scene has them).
 void validateContact(const Scene& scene);
+/// Reads `self_collision` (absent or null: disabled).
+void readSelfCollision(const YAML::Node& node, Scene* scene);
+/// thickness > 0 and finite when enabled, friction >= 0, an implicit method.
+void validateSelfCollision(const Scene& scene);
 /// A move_collider event names an existing collider, with finite values.
 void validateMoveCollider(const SceneEvent& event, const Scene& scene, const std::string& path);
 

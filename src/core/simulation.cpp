@@ -1,6 +1,7 @@
 #include "cloth_sim/simulation.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <limits>
 #include <set>
@@ -85,6 +86,8 @@ void Simulation::reset() {
   collider_step_.colliders = &colliders_;
   collider_step_.thickness = scene_.contact.thickness;
   max_penetration_ = 0.0;
+  self_collision_ = SelfCollision(model_, scene_.self_collision);
+  min_self_distance_ = std::numeric_limits<double>::infinity();
   pins_.clear();
   for (int p : scene_.pins) pins_[p] = PinTarget{position(p), Vec3::Zero(), 0.0};
   size_ = std::hypot(scene_.cloth.cols > 1 ? scene_.cloth.width : 0.0, scene_.cloth.length);
@@ -123,6 +126,7 @@ StepStats Simulation::step(double h) {
     checkpoint_.pins.assign(pins_.begin(), pins_.end());
     checkpoint_.colliders = collider_states_;
     checkpoint_.max_penetration = max_penetration_;
+    checkpoint_.min_self_distance = min_self_distance_;
   }
   StepStats stats = stepWithRecovery(h, 0);
   if (!stats.ok && scene_.solver.recovery) {
@@ -137,6 +141,7 @@ StepStats Simulation::step(double h) {
     pins_ = std::map<int, PinTarget>(checkpoint_.pins.begin(), checkpoint_.pins.end());
     collider_states_ = checkpoint_.colliders;
     max_penetration_ = checkpoint_.max_penetration;
+    min_self_distance_ = checkpoint_.min_self_distance;
     measures_ = measureEnergy(model_, x_, v_);
   }
   if (stats.ok) ++step_count_;
@@ -189,6 +194,17 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
   }
 
   StepStats stats = stepper_.step(model_, h, pin_ends_, history, x_, v_, as, collider_step_);
+  if (stats.ok && self_collision_.enabled()) {  // filters x0 -> x1 (self_collision.hpp)
+    const auto start = std::chrono::steady_clock::now();
+    self_masses_.fixed = pin_ends_.nodes;
+    self_masses_.heavy = stepper_.contacts().contactNodes();
+    const SelfCollisionResult self = self_collision_.apply(model_, h, x_save_, self_masses_, x_, v_);
+    stats.self_contacts = self.contacts;
+    stats.min_self_distance = self.min_distance;
+    stats.self_collision_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    stats.wall_time_s += stats.self_collision_s;
+    if (!self.ok) stats.ok = false, stats.failure = self.failure;
+  }
 
   // Work the pins did: reaction at the end of the step times their travel.
   // Only computed when a pin moved (static pins do no work).
@@ -255,6 +271,7 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
     if (t_ >= c.velocity_until) c.velocity.setZero();
   }
   max_penetration_ = std::max(max_penetration_, stats.max_penetration);
+  min_self_distance_ = std::min(min_self_distance_, stats.min_self_distance);
   stats.work_in = work;
   work_in_total_ += work;
   return stats;
@@ -282,6 +299,9 @@ void Simulation::accumulate(const StepStats& part, StepStats* total) const {
   total->contacts = part.contacts;
   total->contact_normal_force = part.contact_normal_force;
   total->max_penetration = std::max(total->max_penetration, part.max_penetration);
+  total->self_contacts = part.self_contacts;
+  total->min_self_distance = std::min(total->min_self_distance, part.min_self_distance);
+  total->self_collision_s += part.self_collision_s;
   total->ok = total->ok && part.ok;
   if (!part.failure.empty()) total->failure = part.failure;
 }

@@ -1,0 +1,115 @@
+// The cloth against itself: a filter applied to each solved step, from the
+// step's start x0 to its end x1, after Bridson, Fedkiw & Anderson 2002 with
+// Harmon et al. 2008's fail-safe:
+//  1. proximity: pairs closer than the thickness at x1 get an inelastic
+//     normal impulse (the approach is stopped, up to the thickness) and
+//     Coulomb friction (tangential impulse at most mu times the normal one);
+//  2. a few rounds of CCD: each pair that would come closer than a minimum
+//     separation along the linear motion gets an inelastic impulse at its
+//     time of impact;
+//  3. impact zones: the nodes of pairs that still collide are merged into
+//     zones, each moved as one rigid body (linear and angular momentum kept),
+//     until CCD finds nothing outside a zone. A rigid motion keeps distances,
+//     so, from an intersection-free x0, the end state is intersection-free.
+// Impulses act on positions (x1 moves by w_i / m_i J n), and the velocity of
+// every moved node is recomputed as (x1 - x0) / h: they only take energy out.
+#pragma once
+
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "cloth_sim/model.hpp"
+#include "cloth_sim/scene.hpp"
+#include "cloth_sim/spatial_hash.hpp"
+
+namespace cloth_sim {
+
+/// What the filter did to one step.
+struct SelfCollisionResult {
+  bool ok = true;
+  std::string failure;  ///< when !ok: why (the caller rejects the step)
+  int contacts = 0;     ///< pairs closer than the thickness at the end
+  /// smallest distance between non-adjacent primitives at the end; exact
+  /// when below the thickness, else some distance >= the thickness (pairs
+  /// farther apart are not looked at), infinity when none is near
+  double min_distance = std::numeric_limits<double>::infinity();
+  int proximity_impulses = 0;
+  int ccd_impulses = 0;
+  int zone_rounds = 0;  ///< rounds of impact zones (0: impulses sufficed)
+  int zone_nodes = 0;   ///< nodes moved rigidly
+  int candidates = 0;   ///< broad-phase pairs of the first query
+};
+
+/// Which nodes the filter may not move, and which it should move little.
+struct SelfCollisionMasses {
+  std::vector<int> fixed;  ///< pinned: infinite mass, their x1 is prescribed
+  std::vector<int> heavy;  ///< held by a collider contact: infinite mass for
+                           ///< impulses, 1000x their mass inside a zone
+};
+
+class SelfCollision {
+ public:
+  SelfCollision() = default;
+  SelfCollision(const Model& model, const Scene::SelfCollision& params);
+  bool enabled() const { return enabled_; }
+
+  /// Inputs: the step's length h, its start x0 (3n) and solved end x1 (3n),
+  /// v the solved end velocity, `masses`. Output: x1 and v filtered as above
+  /// (v = (x1 - x0) / h on every node the filter moved, untouched elsewhere).
+  /// Fails (ok = false, x1 and v then partly filtered: the caller rolls the
+  /// step back) when a zone holds fixed nodes that do not move as one
+  /// translation, or the zones do not settle within their round limit.
+  SelfCollisionResult apply(const Model& model, double h, const VecX& x0,
+                            const SelfCollisionMasses& masses, VecX& x1, VecX& v);
+
+  /// Distance and closeness of every candidate pair at positions x (for the
+  /// final report; also the tests' proximity measure).
+  void measure(const VecX& x, SelfCollisionResult* result);
+
+  const CollisionMesh& mesh() const { return mesh_; }
+
+ private:
+  /// One point–triangle (kind 0) or edge–edge (kind 1) pair as four nodes
+  /// with the weights of the relative position w . x (closest points' difference).
+  struct Pair {
+    int node[4];
+    double w[4];
+    Vec3 n;           ///< unit normal: the closest points' direction where measured
+    double distance;  ///< where measured
+    double target;    ///< end gap along n the impulse restores (if larger)
+  };
+  /// The pair's nodes, closest-point weights, normal and distance at the
+  /// four positions `at` (ordered as nodesOf).
+  void makePair(int kind, int a, int b, const std::array<Vec3, 4>& at, Pair* pair) const;
+  void gather(const std::array<int, 4>& nodes, const VecX& x, std::array<Vec3, 4>* out) const;
+  std::array<int, 4> nodesOf(int kind, int a, int b) const;
+  /// Applies pair's inelastic normal impulse and friction to x1.
+  bool impulse(const Pair& pair, const VecX& x0, VecX& x1) const;
+  /// CCD of every candidate pair not inside one zone; fills hits_.
+  void detect(const VecX& x0, const VecX& x1, bool skip_zones);
+  /// Moves each zone rigidly; false (with `failure`) if a zone cannot move.
+  bool moveZones(const VecX& x0, const SelfCollisionMasses& masses, VecX& x1,
+                 std::string* failure, int* moved);
+  int find(int i);
+
+  bool enabled_ = false;
+  double thickness_ = 0.0;
+  double friction_ = 0.0;
+  double separation_ = 0.0;  ///< CCD's minimum separation
+  CollisionMesh mesh_;
+  SpatialHash hash_;
+  CandidatePairs pairs_;
+  std::vector<double> inv_mass_, zone_mass_;
+  std::vector<int> parent_;  ///< zone union-find (a node alone is its own root)
+  std::vector<char> in_zone_;
+  std::vector<char> fixed_;
+  struct Hit {
+    int kind, a, b;
+    double toi;
+  };
+  std::vector<Hit> hits_;
+  VecX x1_in_;
+};
+
+}  // namespace cloth_sim

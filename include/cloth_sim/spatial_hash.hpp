@@ -1,0 +1,70 @@
+// Broad phase for self-collision: a uniform grid hashed into a table rebuilt
+// for each query (counting sort, so linear in the elements), over the boxes
+// the nodes, triangles and edges sweep in one step. Gives the point–triangle
+// and edge–edge pairs that may come close, without adjacent ones (sharing a
+// node), each once.
+#pragma once
+
+#include <utility>
+#include <vector>
+
+#include "cloth_sim/types.hpp"
+
+namespace cloth_sim {
+
+/// The cloth's collision primitives: its triangles and their unique edges.
+struct CollisionMesh {
+  int num_nodes = 0;
+  std::vector<Eigen::Vector3i> triangles;
+  std::vector<Eigen::Vector2i> edges;  ///< (i, j) with i < j, sorted, unique
+};
+/// The unique edges of `triangles` over `num_nodes` nodes.
+CollisionMesh buildCollisionMesh(int num_nodes, const std::vector<Eigen::Vector3i>& triangles);
+
+/// Candidate pairs for one step.
+struct CandidatePairs {
+  std::vector<std::pair<int, int>> point_triangle;  ///< (node, triangle), sorted
+  std::vector<std::pair<int, int>> edge_edge;       ///< (edge a, edge b), a < b, sorted
+  void clear() { point_triangle.clear(); edge_edge.clear(); }
+};
+
+/// An axis-aligned box.
+struct Box {
+  Vec3 lo, hi;
+  bool overlaps(const Box& o) const {
+    return (lo.array() <= o.hi.array()).all() && (o.lo.array() <= hi.array()).all();
+  }
+};
+
+/// Box a node sweeps from x0 to x1 (3n vectors), grown by `pad` on every side.
+Box sweptNodeBox(const VecX& x0, const VecX& x1, int node, double pad);
+
+class SpatialHash {
+ public:
+  /// Inputs: mesh, the step's start and end positions x0, x1 (3n), `gap` >= 0.
+  /// Output: every non-adjacent pair whose swept boxes, each grown by gap/2,
+  /// overlap (so every pair that may come within `gap` during the linear
+  /// motion), each once. Cost: linear in the elements plus the cells they
+  /// cover plus the pairs found (then sorted).
+  void findPairs(const CollisionMesh& mesh, const VecX& x0, const VecX& x1, double gap,
+                 CandidatePairs* out);
+  double cellSize() const { return cell_; }
+
+ private:
+  /// One table of elements by grid cell (a counting sort on the cell hash).
+  struct Table {
+    std::vector<int> start;  ///< bucket b holds ids[start[b] .. start[b + 1])
+    std::vector<int> ids;
+    unsigned mask = 0;
+  };
+  void buildTable(const std::vector<Box>& boxes, Table* table);
+  template <class Visit>
+  void forCells(const Box& box, Visit visit) const;
+
+  double cell_ = 1.0;
+  std::vector<Box> node_box_, tri_box_, edge_box_;
+  Table tri_table_, edge_table_;
+  std::vector<unsigned> bucket_scratch_;
+};
+
+}  // namespace cloth_sim

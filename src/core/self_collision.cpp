@@ -1,0 +1,321 @@
+// Self-collision response: proximity impulses with friction, CCD impulses,
+// impact zones. See self_collision.hpp for the scheme and docs/design.md for
+// why this and not a barrier.
+#include "cloth_sim/self_collision.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+#include "cloth_sim/collision_geometry.hpp"
+
+namespace cloth_sim {
+namespace {
+
+constexpr int kCcdRounds = 4;     // impulse rounds before zones (Bridson et al. use a few)
+constexpr int kZoneRounds = 100;  // zone merges before the step is given up
+constexpr double kHeavy = 1e3;    // zone mass factor of a node held by a collider
+
+}  // namespace
+
+SelfCollision::SelfCollision(const Model& model, const Scene::SelfCollision& params)
+    : enabled_(params.enabled),
+      thickness_(params.thickness),
+      friction_(params.friction),
+      // The CCD only has to keep layers apart; the thickness is the
+      // proximity stage's business. A tenth leaves room for round-off
+      // without flagging layers that rest at the thickness.
+      separation_(0.1 * params.thickness) {
+  if (enabled_) mesh_ = buildCollisionMesh(model.numNodes(), model.triangles);
+}
+
+std::array<int, 4> SelfCollision::nodesOf(int kind, int a, int b) const {
+  if (kind == 0) {
+    const Eigen::Vector3i& t = mesh_.triangles[b];
+    return {a, t[0], t[1], t[2]};
+  }
+  return {mesh_.edges[a][0], mesh_.edges[a][1], mesh_.edges[b][0], mesh_.edges[b][1]};
+}
+
+void SelfCollision::gather(const std::array<int, 4>& nodes, const VecX& x,
+                           std::array<Vec3, 4>* out) const {
+  for (int k = 0; k < 4; ++k) (*out)[k] = x.segment<3>(3 * nodes[k]);
+}
+
+void SelfCollision::makePair(int kind, int a, int b, const std::array<Vec3, 4>& at,
+                             Pair* pair) const {
+  const std::array<int, 4> nodes = nodesOf(kind, a, b);
+  std::copy(nodes.begin(), nodes.end(), pair->node);
+  Vec3 geometric;
+  if (kind == 0) {
+    Vec3 bary;
+    pointTriangleDistance(at[0], at[1], at[2], at[3], &bary);
+    pair->w[0] = 1.0, pair->w[1] = -bary[0], pair->w[2] = -bary[1], pair->w[3] = -bary[2];
+    geometric = (at[2] - at[1]).cross(at[3] - at[1]);
+  } else {
+    double s, t;
+    edgeEdgeDistance(at[0], at[1], at[2], at[3], &s, &t);
+    pair->w[0] = 1 - s, pair->w[1] = s, pair->w[2] = -(1 - t), pair->w[3] = -t;
+    geometric = (at[1] - at[0]).cross(at[3] - at[2]);
+  }
+  Vec3 rel = Vec3::Zero();
+  for (int k = 0; k < 4; ++k) rel += pair->w[k] * at[k];
+  pair->distance = rel.norm();
+  // Touching (or nearly): the closest points give no direction; the
+  // primitives' own normal does, on the side the pair is on.
+  if (pair->distance > 1e-12 * (1.0 + at[0].norm())) {
+    pair->n = rel / pair->distance;
+  } else if (geometric.squaredNorm() > 0.0) {
+    pair->n = geometric.normalized();
+    if (pair->n.dot(rel) < 0) pair->n = -pair->n;
+  } else {
+    pair->n = Vec3::UnitZ();
+  }
+  pair->target = pair->distance;
+}
+
+bool SelfCollision::impulse(const Pair& pair, const VecX& x0, VecX& x1) const {
+  Vec3 rel1 = Vec3::Zero(), rel0 = Vec3::Zero();
+  double denom = 0.0;
+  for (int k = 0; k < 4; ++k) {
+    rel1 += pair.w[k] * x1.segment<3>(3 * pair.node[k]);
+    rel0 += pair.w[k] * x0.segment<3>(3 * pair.node[k]);
+    denom += pair.w[k] * pair.w[k] * inv_mass_[pair.node[k]];
+  }
+  const double gap = pair.n.dot(rel1);
+  if (!(gap < pair.target) || !(denom > 0.0)) return false;
+  // Inelastic: the normal impulse brings the end gap up to the target and no
+  // further (no bounce). Impulses are in displacement units: node k moves by
+  // w_k / m_k J, the relative position by J sum w_k^2 / m_k.
+  const double dg = pair.target - gap;
+  Vec3 dx = (dg / denom) * pair.n;
+  // Coulomb: the tangential relative displacement over the step is cut by at
+  // most mu times the normal one (a friction impulse <= mu times the normal
+  // impulse), never reversed.
+  const Vec3 slip = rel1 - rel0 - pair.n * pair.n.dot(rel1 - rel0);
+  const double slip_norm = slip.norm();
+  if (friction_ > 0.0 && slip_norm > 0.0) {
+    dx -= (std::min(friction_ * dg, slip_norm) / (denom * slip_norm)) * slip;
+  }
+  for (int k = 0; k < 4; ++k) {
+    x1.segment<3>(3 * pair.node[k]) += pair.w[k] * inv_mass_[pair.node[k]] * dx;
+  }
+  return true;
+}
+
+int SelfCollision::find(int i) {
+  while (parent_[i] != i) i = parent_[i] = parent_[parent_[i]];
+  return i;
+}
+
+void SelfCollision::detect(const VecX& x0, const VecX& x1, bool skip_zones) {
+  hits_.clear();
+  hash_.findPairs(mesh_, x0, x1, separation_, &pairs_);
+  std::array<Vec3, 4> a0, a1;
+  auto test = [&](int kind, int a, int b) {
+    const std::array<int, 4> nodes = nodesOf(kind, a, b);
+    if (skip_zones) {
+      // A pair inside one zone moves rigidly: its distance cannot change.
+      const int root = find(nodes[0]);
+      if (find(nodes[1]) == root && find(nodes[2]) == root && find(nodes[3]) == root) return;
+    }
+    gather(nodes, x0, &a0);
+    gather(nodes, x1, &a1);
+    // A pair that starts closer than the separation must keep half its start
+    // distance: it may not close in, yet is not flagged for being close.
+    const double d0 = kind == 0 ? pointTriangleDistance(a0[0], a0[1], a0[2], a0[3])
+                                : edgeEdgeDistance(a0[0], a0[1], a0[2], a0[3]);
+    const double sep = std::min(separation_, 0.5 * d0);
+    const Impact hit = kind == 0 ? pointTriangleCcd(a0, a1, sep) : edgeEdgeCcd(a0, a1, sep);
+    if (hit.hit) hits_.push_back(Hit{kind, a, b, hit.toi});
+  };
+  for (const auto& [node, tri] : pairs_.point_triangle) test(0, node, tri);
+  for (const auto& [ea, eb] : pairs_.edge_edge) test(1, ea, eb);
+}
+
+bool SelfCollision::moveZones(const VecX& x0, const SelfCollisionMasses& masses, VecX& x1,
+                              std::string* failure, int* moved) {
+  (void)masses;
+  const int n = mesh_.num_nodes;
+  std::vector<std::vector<int>> zones;
+  std::vector<int> zone_of(n, -1);
+  for (int i = 0; i < n; ++i) {
+    if (!in_zone_[i]) continue;
+    const int root = find(i);
+    if (zone_of[root] < 0) {
+      zone_of[root] = static_cast<int>(zones.size());
+      zones.emplace_back();
+    }
+    zones[zone_of[root]].push_back(i);
+  }
+  *moved = 0;
+  for (const std::vector<int>& zone : zones) {
+    *moved += static_cast<int>(zone.size());
+    // Fixed (pinned) nodes have infinite mass: the zone can only follow them,
+    // which is a rigid motion only if they all move by one translation.
+    int first_fixed = -1;
+    for (int i : zone) {
+      if (!fixed_[i]) continue;
+      if (first_fixed < 0) {
+        first_fixed = i;
+        continue;
+      }
+      const Vec3 d0 = x1.segment<3>(3 * first_fixed) - x0.segment<3>(3 * first_fixed);
+      const Vec3 d = x1.segment<3>(3 * i) - x0.segment<3>(3 * i);
+      if ((d - d0).norm() > 1e-12 * (1.0 + d0.norm())) {
+        *failure = "self-collision: an impact zone of " + std::to_string(zone.size()) +
+                   " nodes holds pinned nodes " + std::to_string(first_fixed) + " and " +
+                   std::to_string(i) + " moving differently: it cannot move rigidly";
+        return false;
+      }
+    }
+    if (first_fixed >= 0) {
+      const Vec3 d = x1.segment<3>(3 * first_fixed) - x0.segment<3>(3 * first_fixed);
+      for (int i : zone) x1.segment<3>(3 * i) = x0.segment<3>(3 * i) + d;
+      continue;
+    }
+    // Rigid motion with the zone's momentum (displacements stand for
+    // velocities times h): centre of mass, then the angular velocity
+    // I^-1 L about it, applied as an exact rotation so distances are kept.
+    double mass = 0.0;
+    Vec3 c0 = Vec3::Zero(), dc = Vec3::Zero();
+    for (int i : zone) {
+      const double m = zone_mass_[i];
+      mass += m;
+      c0 += m * x0.segment<3>(3 * i);
+      dc += m * (x1.segment<3>(3 * i) - x0.segment<3>(3 * i));
+    }
+    c0 /= mass;
+    dc /= mass;
+    Vec3 L = Vec3::Zero();
+    Mat3 inertia = Mat3::Zero();
+    for (int i : zone) {
+      const double m = zone_mass_[i];
+      const Vec3 r = x0.segment<3>(3 * i) - c0;
+      L += m * r.cross(x1.segment<3>(3 * i) - x0.segment<3>(3 * i) - dc);
+      inertia += m * (r.squaredNorm() * Mat3::Identity() - r * r.transpose());
+    }
+    // A zone on a line (or one node) has a singular inertia: the
+    // pseudo-inverse leaves the rotation about that line out.
+    const Vec3 omega = inertia.completeOrthogonalDecomposition().solve(L);
+    const double angle = omega.norm();
+    const Mat3 R = angle > 0.0 ? Eigen::AngleAxisd(angle, omega / angle).toRotationMatrix()
+                               : Mat3::Identity();
+    for (int i : zone) x1.segment<3>(3 * i) = c0 + dc + R * (x0.segment<3>(3 * i) - c0);
+  }
+  return true;
+}
+
+SelfCollisionResult SelfCollision::apply(const Model& model, double h, const VecX& x0,
+                                         const SelfCollisionMasses& masses, VecX& x1, VecX& v) {
+  SelfCollisionResult result;
+  const int n = model.numNodes();
+  inv_mass_.resize(n);
+  zone_mass_.resize(n);
+  fixed_.assign(n, 0);
+  for (int i = 0; i < n; ++i) {
+    inv_mass_[i] = model.mass[i] > 0.0 ? 1.0 / model.mass[i] : 0.0;
+    zone_mass_[i] = model.mass[i];
+  }
+  for (int i : masses.heavy) inv_mass_[i] = 0.0, zone_mass_[i] *= kHeavy;
+  for (int i : masses.fixed) inv_mass_[i] = 0.0, fixed_[i] = 1;
+  x1_in_ = x1;
+
+  // 1. Proximity at the end of the step.
+  hash_.findPairs(mesh_, x0, x1, thickness_, &pairs_);
+  result.candidates = static_cast<int>(pairs_.point_triangle.size() + pairs_.edge_edge.size());
+  std::vector<Pair> close;
+  std::array<Vec3, 4> at, start;
+  auto consider = [&](int kind, int a, int b) {
+    Pair pair;
+    gather(nodesOf(kind, a, b), x1, &at);
+    makePair(kind, a, b, at, &pair);
+    if (!(pair.distance < thickness_)) return;
+    gather(nodesOf(kind, a, b), x0, &start);
+    Vec3 rel0 = Vec3::Zero();
+    for (int k = 0; k < 4; ++k) rel0 += pair.w[k] * start[k];
+    // Crossed during the step (x0 on the other side): CCD's business.
+    const double g0 = pair.n.dot(rel0);
+    if (!(g0 > 0.0)) return;
+    // Stop the approach; restore up to the thickness, never push beyond
+    // where the pair started (no energy put in).
+    pair.target = std::min(thickness_, g0);
+    close.push_back(pair);
+  };
+  for (const auto& [node, tri] : pairs_.point_triangle) consider(0, node, tri);
+  for (const auto& [ea, eb] : pairs_.edge_edge) consider(1, ea, eb);
+  for (const Pair& pair : close) result.proximity_impulses += impulse(pair, x0, x1);
+
+  // 2. CCD impulses: stop each colliding pair's normal approach at its time
+  // of impact, with friction.
+  bool clear = false;
+  for (int round = 0; round < kCcdRounds && !clear; ++round) {
+    detect(x0, x1, false);
+    clear = hits_.empty();
+    for (const Hit& hit : hits_) {
+      const std::array<int, 4> nodes = nodesOf(hit.kind, hit.a, hit.b);
+      gather(nodes, x0, &start);
+      gather(nodes, x1, &at);
+      for (int k = 0; k < 4; ++k) at[k] = start[k] + hit.toi * (at[k] - start[k]);
+      Pair pair;
+      makePair(hit.kind, hit.a, hit.b, at, &pair);
+      result.ccd_impulses += impulse(pair, x0, x1);
+    }
+  }
+
+  // 3. The fail-safe: impact zones until CCD finds nothing between zones.
+  if (!clear) {
+    parent_.resize(n);
+    std::iota(parent_.begin(), parent_.end(), 0);
+    in_zone_.assign(n, 0);
+    for (int round = 0; round < kZoneRounds && !clear; ++round) {
+      detect(x0, x1, true);
+      clear = hits_.empty();
+      if (clear) break;
+      ++result.zone_rounds;
+      for (const Hit& hit : hits_) {
+        const std::array<int, 4> nodes = nodesOf(hit.kind, hit.a, hit.b);
+        for (int k = 0; k < 4; ++k) {
+          in_zone_[nodes[k]] = 1;
+          parent_[find(nodes[k])] = find(nodes[0]);
+        }
+      }
+      if (!moveZones(x0, masses, x1, &result.failure, &result.zone_nodes)) {
+        result.ok = false;
+        return result;
+      }
+    }
+    if (!clear) {
+      result.ok = false;
+      result.failure = "self-collision: impact zones did not settle in " +
+                       std::to_string(kZoneRounds) + " rounds";
+      return result;
+    }
+  }
+
+  for (int i = 0; i < n; ++i) {
+    if (x1.segment<3>(3 * i) != x1_in_.segment<3>(3 * i)) {
+      v.segment<3>(3 * i) = (x1.segment<3>(3 * i) - x0.segment<3>(3 * i)) / h;
+    }
+  }
+  measure(x1, &result);
+  return result;
+}
+
+void SelfCollision::measure(const VecX& x, SelfCollisionResult* result) {
+  hash_.findPairs(mesh_, x, x, thickness_, &pairs_);
+  result->contacts = 0;
+  result->min_distance = std::numeric_limits<double>::infinity();
+  std::array<Vec3, 4> at;
+  auto visit = [&](int kind, int a, int b) {
+    gather(nodesOf(kind, a, b), x, &at);
+    const double d = kind == 0 ? pointTriangleDistance(at[0], at[1], at[2], at[3])
+                               : edgeEdgeDistance(at[0], at[1], at[2], at[3]);
+    result->min_distance = std::min(result->min_distance, d);
+    result->contacts += d < thickness_;
+  };
+  for (const auto& [node, tri] : pairs_.point_triangle) visit(0, node, tri);
+  for (const auto& [ea, eb] : pairs_.edge_edge) visit(1, ea, eb);
+}
+
+}  // namespace cloth_sim

@@ -1,0 +1,139 @@
+// Uniform-grid spatial hash for the self-collision broad phase.
+#include "cloth_sim/spatial_hash.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace cloth_sim {
+
+CollisionMesh buildCollisionMesh(int num_nodes, const std::vector<Eigen::Vector3i>& triangles) {
+  CollisionMesh mesh;
+  mesh.num_nodes = num_nodes;
+  mesh.triangles = triangles;
+  std::vector<std::pair<int, int>> e;
+  e.reserve(3 * triangles.size());
+  for (const Eigen::Vector3i& t : triangles) {
+    for (int k = 0; k < 3; ++k) {
+      const int a = t[k], b = t[(k + 1) % 3];
+      e.emplace_back(std::min(a, b), std::max(a, b));
+    }
+  }
+  std::sort(e.begin(), e.end());
+  e.erase(std::unique(e.begin(), e.end()), e.end());
+  for (const auto& [a, b] : e) mesh.edges.emplace_back(a, b);
+  return mesh;
+}
+
+Box sweptNodeBox(const VecX& x0, const VecX& x1, int node, double pad) {
+  const Vec3 a = x0.segment<3>(3 * node), b = x1.segment<3>(3 * node);
+  return Box{a.cwiseMin(b).array() - pad, a.cwiseMax(b).array() + pad};
+}
+
+namespace {
+
+Box merge(const Box& a, const Box& b) { return Box{a.lo.cwiseMin(b.lo), a.hi.cwiseMax(b.hi)}; }
+
+unsigned cellHash(long ix, long iy, long iz) {
+  // Teschner et al. 2003's primes.
+  return static_cast<unsigned>((ix * 73856093L) ^ (iy * 19349663L) ^ (iz * 83492791L));
+}
+
+}  // namespace
+
+template <class Visit>
+void SpatialHash::forCells(const Box& box, Visit visit) const {
+  const Eigen::Array3d lo = (box.lo / cell_).array().floor(), hi = (box.hi / cell_).array().floor();
+  for (long ix = long(lo.x()); ix <= long(hi.x()); ++ix)
+    for (long iy = long(lo.y()); iy <= long(hi.y()); ++iy)
+      for (long iz = long(lo.z()); iz <= long(hi.z()); ++iz) visit(ix, iy, iz);
+}
+
+void SpatialHash::buildTable(const std::vector<Box>& boxes, Table* table) {
+  // Count the (element, cell) entries, size the table to twice that (a
+  // power of two), then place the ids by bucket: two passes, no hashing map.
+  size_t entries = 0;
+  for (const Box& b : boxes) forCells(b, [&](long, long, long) { ++entries; });
+  size_t size = 16;
+  while (size < 2 * entries) size *= 2;
+  table->mask = static_cast<unsigned>(size - 1);
+  table->start.assign(size + 1, 0);
+  bucket_scratch_.clear();
+  for (const Box& b : boxes) {
+    forCells(b, [&](long ix, long iy, long iz) {
+      const unsigned bucket = cellHash(ix, iy, iz) & table->mask;
+      bucket_scratch_.push_back(bucket);
+      ++table->start[bucket + 1];
+    });
+  }
+  for (size_t k = 0; k < size; ++k) table->start[k + 1] += table->start[k];
+  table->ids.resize(entries);
+  std::vector<int> fill(table->start.begin(), table->start.end() - 1);
+  size_t entry = 0;
+  for (size_t id = 0; id < boxes.size(); ++id) {
+    forCells(boxes[id], [&](long, long, long) {
+      table->ids[fill[bucket_scratch_[entry++]]++] = static_cast<int>(id);
+    });
+  }
+}
+
+void SpatialHash::findPairs(const CollisionMesh& mesh, const VecX& x0, const VecX& x1,
+                            double gap, CandidatePairs* out) {
+  out->clear();
+  const int n = mesh.num_nodes;
+  const double pad = 0.5 * gap;
+  node_box_.resize(n);
+  for (int i = 0; i < n; ++i) node_box_[i] = sweptNodeBox(x0, x1, i, pad);
+  tri_box_.resize(mesh.triangles.size());
+  double extent = 0.0, largest = 0.0;
+  for (size_t k = 0; k < mesh.triangles.size(); ++k) {
+    const Eigen::Vector3i& t = mesh.triangles[k];
+    tri_box_[k] = merge(merge(node_box_[t[0]], node_box_[t[1]]), node_box_[t[2]]);
+    const double e = (tri_box_[k].hi - tri_box_[k].lo).maxCoeff();
+    extent += e;
+    largest = std::max(largest, e);
+  }
+  edge_box_.resize(mesh.edges.size());
+  for (size_t k = 0; k < mesh.edges.size(); ++k) {
+    edge_box_[k] = merge(node_box_[mesh.edges[k][0]], node_box_[mesh.edges[k][1]]);
+  }
+  if (mesh.triangles.empty()) return;
+  // Cells about a triangle's box: each element then covers a few cells. A
+  // fast element's box is capped at 8 cells a side by growing the cell.
+  cell_ = std::max({extent / mesh.triangles.size(), largest / 8.0, 1e-9});
+
+  buildTable(tri_box_, &tri_table_);
+  for (int i = 0; i < n; ++i) {
+    const Box& box = node_box_[i];
+    forCells(box, [&](long ix, long iy, long iz) {
+      const unsigned bucket = cellHash(ix, iy, iz) & tri_table_.mask;
+      for (int k = tri_table_.start[bucket]; k < tri_table_.start[bucket + 1]; ++k) {
+        const int tri = tri_table_.ids[k];
+        const Eigen::Vector3i& t = mesh.triangles[tri];
+        if (t[0] == i || t[1] == i || t[2] == i || !box.overlaps(tri_box_[tri])) continue;
+        out->point_triangle.emplace_back(i, tri);
+      }
+    });
+  }
+  buildTable(edge_box_, &edge_table_);
+  for (size_t a = 0; a < mesh.edges.size(); ++a) {
+    const Box& box = edge_box_[a];
+    const int a0 = mesh.edges[a][0], a1 = mesh.edges[a][1];
+    forCells(box, [&](long ix, long iy, long iz) {
+      const unsigned bucket = cellHash(ix, iy, iz) & edge_table_.mask;
+      for (int k = edge_table_.start[bucket]; k < edge_table_.start[bucket + 1]; ++k) {
+        const int b = edge_table_.ids[k];
+        if (b <= static_cast<int>(a)) continue;
+        const int b0 = mesh.edges[b][0], b1 = mesh.edges[b][1];
+        if (b0 == a0 || b0 == a1 || b1 == a0 || b1 == a1 || !box.overlaps(edge_box_[b])) continue;
+        out->edge_edge.emplace_back(static_cast<int>(a), b);
+      }
+    });
+  }
+  // A pair shares several cells (and hashed buckets): keep it once.
+  for (auto* pairs : {&out->point_triangle, &out->edge_edge}) {
+    std::sort(pairs->begin(), pairs->end());
+    pairs->erase(std::unique(pairs->begin(), pairs->end()), pairs->end());
+  }
+}
+
+}  // namespace cloth_sim

@@ -1,0 +1,92 @@
+// The broad phase finds every pair brute force finds, and its work grows
+// linearly with a flat cloth's nodes.
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "cloth_sim/model.hpp"
+#include "cloth_sim/spatial_hash.hpp"
+#include "scene_builders.hpp"
+
+namespace cloth_sim {
+namespace {
+
+bool adjacent(const std::vector<int>& a, const std::vector<int>& b) {
+  for (int i : a)
+    for (int j : b)
+      if (i == j) return true;
+  return false;
+}
+
+TEST(SpatialHash, FindsEveryPairBruteForceFinds) {
+  const Model model = buildModel(test::bareScene(9, 11));
+  const CollisionMesh mesh = buildCollisionMesh(model.numNodes(), model.triangles);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-0.15, 0.15);
+  for (int trial = 0; trial < 5; ++trial) {
+    // A crumpled cloth and a random motion (some nodes move far).
+    VecX x0 = model.rest_positions, x1 = x0;
+    for (int k = 0; k < x0.size(); ++k) {
+      x0[k] += u(rng);
+      x1[k] = x0[k] + (k % 17 == 0 ? 5.0 : 1.0) * u(rng);
+    }
+    const double gap = 0.02;
+    SpatialHash hash;
+    CandidatePairs pairs;
+    hash.findPairs(mesh, x0, x1, gap, &pairs);
+    std::vector<Box> node_box(model.numNodes());
+    for (int i = 0; i < model.numNodes(); ++i) node_box[i] = sweptNodeBox(x0, x1, i, 0.5 * gap);
+    auto boxOf = [&](const std::vector<int>& nodes) {
+      Box b = node_box[nodes[0]];
+      for (int i : nodes) b = Box{b.lo.cwiseMin(node_box[i].lo), b.hi.cwiseMax(node_box[i].hi)};
+      return b;
+    };
+    std::vector<std::pair<int, int>> pt, ee;
+    for (int i = 0; i < model.numNodes(); ++i)
+      for (size_t t = 0; t < mesh.triangles.size(); ++t) {
+        const auto& tri = mesh.triangles[t];
+        const std::vector<int> tn = {tri[0], tri[1], tri[2]};
+        if (!adjacent({i}, tn) && node_box[i].overlaps(boxOf(tn))) pt.emplace_back(i, int(t));
+      }
+    for (size_t a = 0; a < mesh.edges.size(); ++a)
+      for (size_t b = a + 1; b < mesh.edges.size(); ++b) {
+        const std::vector<int> ea = {mesh.edges[a][0], mesh.edges[a][1]};
+        const std::vector<int> eb = {mesh.edges[b][0], mesh.edges[b][1]};
+        if (!adjacent(ea, eb) && boxOf(ea).overlaps(boxOf(eb))) ee.emplace_back(int(a), int(b));
+      }
+    EXPECT_GT(pt.size(), 50u);
+    EXPECT_GT(ee.size(), 50u);
+    EXPECT_EQ(pairs.point_triangle, pt);
+    EXPECT_EQ(pairs.edge_edge, ee);
+  }
+}
+
+TEST(SpatialHash, EdgesAreUniqueAndComplete) {
+  const Model model = buildModel(test::bareScene(4, 5));
+  const CollisionMesh mesh = buildCollisionMesh(model.numNodes(), model.triangles);
+  // A 4 x 5 grid: 4*4 horizontal + 3*5 vertical + 3*4 diagonal edges.
+  EXPECT_EQ(mesh.edges.size(), 16u + 15u + 12u);
+}
+
+TEST(SpatialHash, CandidatesGrowLinearlyOnAFlatCloth) {
+  // A flat falling cloth: each node's candidates are its near neighbours, so
+  // the pairs per node stay the same from 16x16 to 64x64.
+  double per_node[2];
+  int k = 0;
+  for (int n : {16, 64}) {
+    Scene s = test::bareScene(n, n);
+    const Model model = buildModel(s);
+    const CollisionMesh mesh = buildCollisionMesh(model.numNodes(), model.triangles);
+    VecX x1 = model.rest_positions;
+    for (int i = 0; i < model.numNodes(); ++i) x1[3 * i + 2] -= 0.2 / n;  // under a cell per step
+    SpatialHash hash;
+    CandidatePairs pairs;
+    hash.findPairs(mesh, model.rest_positions, x1, 0.002, &pairs);
+    per_node[k++] = double(pairs.point_triangle.size() + pairs.edge_edge.size()) / model.numNodes();
+  }
+  EXPECT_LT(per_node[1], 1.2 * per_node[0]);
+  EXPECT_LT(per_node[1], 40.0);
+}
+
+}  // namespace
+}  // namespace cloth_sim
