@@ -35,14 +35,20 @@ Box merge(const Box& a, const Box& b) { return Box{a.lo.cwiseMin(b.lo), a.hi.cwi
 
 unsigned cellHash(long ix, long iy, long iz) {
   // Teschner et al. 2003's primes.
-  return static_cast<unsigned>((ix * 73856093L) ^ (iy * 19349663L) ^ (iz * 83492791L));
+  // Unsigned arithmetic: wrapping is defined (signed overflow would not be).
+  const auto u = [](long i) { return static_cast<unsigned long>(i); };
+  return static_cast<unsigned>((u(ix) * 73856093UL) ^ (u(iy) * 19349663UL) ^ (u(iz) * 83492791UL));
 }
 
 }  // namespace
 
 template <class Visit>
 void SpatialHash::forCells(const Box& box, Visit visit) const {
-  const Eigen::Array3d lo = (box.lo / cell_).array().floor(), hi = (box.hi / cell_).array().floor();
+  // Clamped before the cast to long (out of range is undefined): far-away
+  // cells then share a cell index, which only adds candidates.
+  constexpr double kFar = 1e15;
+  const Eigen::Array3d lo = (box.lo / cell_).array().floor().max(-kFar).min(kFar);
+  const Eigen::Array3d hi = (box.hi / cell_).array().floor().max(-kFar).min(kFar);
   for (long ix = long(lo.x()); ix <= long(hi.x()); ++ix)
     for (long iy = long(lo.y()); iy <= long(hi.y()); ++iy)
       for (long iz = long(lo.z()); iz <= long(hi.z()); ++iz) visit(ix, iy, iz);
