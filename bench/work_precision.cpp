@@ -797,8 +797,9 @@ Preconditioner parsePreconditioner(const std::string& name) {
   if (name == "block_jacobi") return Preconditioner::BlockJacobi;
   if (name == "cholesky") return Preconditioner::Cholesky;
   if (name == "multigrid") return Preconditioner::Multigrid;
+  if (name == "auto") return Preconditioner::Auto;
   throw UsageError{"--ref-preconditioner: unknown '" + name +
-                   "' (expected none, block_jacobi, cholesky, multigrid)"};
+                   "' (expected auto, none, block_jacobi, cholesky, multigrid)"};
 }
 
 int benchMain(const Options& o) {

@@ -137,6 +137,21 @@ struct CgWorkspace {
   int factorizations = 0;  ///< count, for the benchmark
 };
 
+/// What `auto` runs for a step of size h (docs/scene.md gives the measurements):
+/// - block_jacobi while the system is mass-dominated, kappa = h (c + h k) / m
+///   <= kAutoJacobiLimit (k, c the stiffest spring group's stiffness and
+///   damping, m the lightest node): there CG converges in tens of cheap
+///   iterations, cheaper than any factorization (the default 24 x 24 demo);
+/// - cholesky up to kAutoCholeskyNodes nodes when stiffer: a factor of the
+///   whole matrix solves at any stiffness in a few iterations, where block
+///   Jacobi needed thousands and halvings (stretch 1e6 on the demo: 12.6 ms
+///   and 207 rejected sub-steps a simulated 0.4 s, cholesky 6.4 ms and none);
+/// - multigrid beyond (the factorization's fill grows faster than the grid).
+/// Any other request is returned as it is.
+Preconditioner choosePreconditioner(Preconditioner requested, const Model& model, double h);
+constexpr double kAutoJacobiLimit = 1000.0;
+constexpr int kAutoCholeskyNodes = 4096;
+
 /// Preconditioned conjugate gradient on S A S y = S b, S the constraint
 /// filter (Baraff & Witkin's modified PCG). `x` is the warm start and the
 /// answer, filtered on entry (eliminated entries zero). Stops when

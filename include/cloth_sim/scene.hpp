@@ -89,7 +89,7 @@ struct Scene {
     double dt = 0.004;             ///< s
     double tolerance = 1e-6;       ///< CG stop: ||r|| <= tolerance * ||b||
     int max_iterations = 500;      ///< CG cap
-    Preconditioner preconditioner = Preconditioner::BlockJacobi;
+    Preconditioner preconditioner = Preconditioner::Auto;
     int multigrid_reuse = 4;       ///< multigrid: solves one hierarchy may serve (1: rebuilt every solve)
     bool project_compression = true;
     double newton_tolerance = 1e-8;   ///< newton/bdf2: ||g|| <= tol * ||g0||

@@ -30,6 +30,10 @@ struct StepStats {
   /// bdf2 steps that would have gained energy, retried as backward Euler
   /// (order 1) at the same size before any halving
   int order_reduced = 0;
+  /// implicit_euler steps whose linearized answer would have gained energy,
+  /// solved on to the converged backward-Euler answer (newton) at the same
+  /// size, before any halving; not counted in `rejected`
+  int refined = 0;
   // contact (zero without colliders)
   int contacts = 0;              ///< nodes in contact at the end of the step
   double contact_normal_force = 0.0;  ///< sum of normal force magnitudes, N

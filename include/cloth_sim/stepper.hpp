@@ -45,6 +45,8 @@ class Stepper {
                  const History& history, VecX& x, VecX& v,
                  std::optional<Method> as = std::nullopt,
                  const CollidersOverStep& colliders = {});
+  /// The preconditioner the last step ran (solver.preconditioner, or what auto chose).
+  Preconditioner preconditioner() const { return preconditioner_; }
   /// Contacts of the last step.
   const ContactSet& contacts() const { return contact_; }
   /// Forgets the contact state (reset, or colliders changed).
@@ -81,6 +83,7 @@ class Stepper {
                             const VecX& f, VecX& g) const;
 
   Scene::Solver settings_;
+  Preconditioner preconditioner_ = Preconditioner::BlockJacobi;  ///< this step's (auto resolved)
   ConstraintFilter filter_;  ///< pins (eliminated) and contacts (projected)
   ContactSet contact_;
   bool contact_on_ = false;  ///< this step has colliders

@@ -203,6 +203,8 @@ struct RunStats {
   bool finite = true;
   long substeps = 0;
   long rejected_steps = 0;
+  long refined_steps = 0;        ///< implicit_euler steps solved on by newton
+  long order_reduced_steps = 0;  ///< bdf2 steps retried as backward Euler
   int max_halvings = 0;
   int contacts = 0;                   ///< at the final step
   double contact_normal_force = 0.0;  ///< at the final step, N
@@ -220,6 +222,8 @@ struct RunStats {
     max_strain = std::max(max_strain, s.max_strain);
     substeps += s.substeps;
     rejected_steps += s.rejected;
+    refined_steps += s.refined;
+    order_reduced_steps += s.order_reduced;
     max_halvings = std::max(max_halvings, s.halvings);
     contacts = s.contacts;
     contact_normal_force = s.contact_normal_force;
@@ -251,6 +255,8 @@ bool writeStats(const std::string& path, const RunStats& r, const cloth_sim::Sim
   std::fprintf(f, "  \"finite\": %s,\n", r.finite ? "true" : "false");
   std::fprintf(f, "  \"substeps\": %ld,\n", r.substeps);
   std::fprintf(f, "  \"rejected_steps\": %ld,\n", r.rejected_steps);
+  std::fprintf(f, "  \"refined_steps\": %ld,\n", r.refined_steps);
+  std::fprintf(f, "  \"order_reduced_steps\": %ld,\n", r.order_reduced_steps);
   std::fprintf(f, "  \"max_halvings\": %d,\n", r.max_halvings);
   // Contact: zeros without colliders.
   std::fprintf(f, "  \"contacts\": %d,\n", r.contacts);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace cloth_sim {
 
@@ -177,6 +178,20 @@ void applyPreconditioner(Preconditioner kind, CgWorkspace& ws, const ConstraintF
 }
 
 }  // namespace
+
+Preconditioner choosePreconditioner(Preconditioner requested, const Model& model, double h) {
+  if (requested != Preconditioner::Auto) return requested;
+  double stiffest = 0.0;
+  for (const SpringGroup& group : model.groups) {
+    if (group.present) stiffest = std::max(stiffest, group.damping + h * group.stiffness);
+  }
+  double lightest = std::numeric_limits<double>::infinity();
+  for (double m : model.mass) lightest = std::min(lightest, m);
+  const double kappa = h * stiffest / lightest;
+  if (kappa <= kAutoJacobiLimit) return Preconditioner::BlockJacobi;
+  return model.numNodes() <= kAutoCholeskyNodes ? Preconditioner::Cholesky
+                                                : Preconditioner::Multigrid;
+}
 
 CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& springs,
                            const ConstraintFilter& filter, const VecX& b, VecX& x,

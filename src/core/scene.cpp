@@ -297,9 +297,11 @@ void readSolver(const YAML::Node& node, Scene::Solver* solver) {
       solver->preconditioner = Preconditioner::Cholesky;
     } else if (name == "multigrid") {
       solver->preconditioner = Preconditioner::Multigrid;
+    } else if (name == "auto") {
+      solver->preconditioner = Preconditioner::Auto;
     } else {
       fail(f.path("preconditioner"), "unknown preconditioner '" + name +
-                                         "' (expected none, block_jacobi, cholesky, multigrid)");
+                                         "' (expected auto, none, block_jacobi, cholesky, multigrid)");
     }
   }
   if (f.has("multigrid_reuse")) {

@@ -8,16 +8,11 @@
 #include <sstream>
 
 #include "cloth_sim/forces.hpp"
+#include "step_failure_text.hpp"
 
 namespace cloth_sim {
 
 namespace {
-
-std::string fmt(double value) {
-  std::ostringstream s;
-  s << value;
-  return s.str();
-}
 
 /// Checks a list of node indices: range and duplicates. `field` names it.
 Status checkIndices(const std::vector<int>& indices, int num_nodes, const std::string& field,
@@ -39,14 +34,9 @@ Status checkIndices(const std::vector<int>& indices, int num_nodes, const std::s
 
 bool finite(const Vec3& v) { return v.allFinite(); }
 
-/// Relative energy gain (of the energy scale) a backward-Euler step may show:
-/// round-off plus what an inexact CG solve (tolerance 1e-2 and up) can add.
+/// Relative energy gain (of the energy scale) a step may show: round-off
+/// plus what an inexact CG solve (tolerance 1e-2 and up) can add.
 constexpr double kEnergyGainTolerance = 1e-6;
-
-std::string newtonFailure(const StepStats& stats) {
-  return "newton did not converge (residual " + fmt(stats.newton_residual) + " of the initial after " +
-         std::to_string(stats.newton_iterations) + " iterations)";
-}
 
 }  // namespace
 
@@ -234,13 +224,16 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
     // energy out (a friction state kept from an earlier pass that would add
     // energy is caught here, and the step split).
     const double contact_work = colliders_move ? std::max(stats.contact_work, 0.0) : 0.0;
-    const double gain = after.total() - before.total() - std::max(work, 0.0) - contact_work;
     // Backward Euler (linearized or not) must not create energy. BDF2 is only
-    // dissipative in its own two-step norm, not step by step, and its
-    // trapezoidal start not at all: the check holds both to the same bound (a
-    // bdf2 step that would gain energy is retried as backward Euler, see
-    // stepWithRecovery). Symplectic Euler's energy
-    // oscillates by design: for it the check only catches a blow-up.
+    // dissipative in its two-step G-norm for linear systems (Dahlquist), not
+    // step by step, and its trapezoidal start not at all; the G-norm's
+    // nonlinear analogue 1/2 [E(z1) + E(2 z1 - z0)] was tried and rejected
+    // more steps than the plain energy (extrapolating a turning stiff spring
+    // stretches it). So bdf2 is held to the same per-step bound; a step that
+    // fails it is retried as backward Euler (stepWithRecovery).
+    const double gain = after.total() - before.total() - std::max(work, 0.0) - contact_work;
+    // Symplectic Euler's energy oscillates by design: for it the check only
+    // catches a blow-up.
     const double allowance =
         scene_.solver.method == Method::SymplecticEuler ? 0.5 : kEnergyGainTolerance;
     if (scene_.solver.recovery && !(gain <= allowance * scale)) {
@@ -277,114 +270,6 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
   return stats;
 }
 
-void Simulation::accumulate(const StepStats& part, StepStats* total) const {
-  total->cg_iterations += part.cg_iterations;
-  total->newton_iterations += part.newton_iterations;
-  total->residual = std::max(total->residual, part.residual);
-  total->newton_residual = std::max(total->newton_residual, part.newton_residual);
-  total->linear_converged = total->linear_converged && part.linear_converged;
-  total->newton_converged = total->newton_converged && part.newton_converged;
-  total->wall_time_s += part.wall_time_s;
-  total->assembly_s += part.assembly_s;
-  total->solve_s += part.solve_s;
-  total->work_in += part.work_in;
-  total->substeps += part.substeps;
-  total->rejected += part.rejected;
-  total->halvings = std::max(total->halvings, part.halvings);
-  total->linearized += part.linearized;
-  total->order_reduced += part.order_reduced;
-  total->contact_passes += part.contact_passes;
-  total->contact_work += part.contact_work;
-  // The contact figures of the last sub-step are those at the end of the step.
-  total->contacts = part.contacts;
-  total->contact_normal_force = part.contact_normal_force;
-  total->max_penetration = std::max(total->max_penetration, part.max_penetration);
-  total->self_contacts = part.self_contacts;
-  total->min_self_distance = std::min(total->min_self_distance, part.min_self_distance);
-  total->self_collision_s += part.self_collision_s;
-  total->ok = total->ok && part.ok;
-  if (!part.failure.empty()) total->failure = part.failure;
-}
-
-StepStats Simulation::stepWithRecovery(double h, int depth) {
-  const bool can_split = scene_.solver.recovery && depth < scene_.solver.max_halvings;
-  // At the deepest halving Newton must still converge: where it cannot (a
-  // singular start, e.g. zero-length springs, makes the implicit equation
-  // scale-free, so halving does not help) the sub-step is taken as one
-  // linearized backward-Euler step, whose linear solve is checked as usual.
-  const bool iterative = scene_.solver.method == Method::Newton ||
-                         scene_.solver.method == Method::Bdf2;
-  const bool fallback = scene_.solver.recovery && !can_split && iterative;
-  const bool reject_newton = can_split || fallback;
-  const bool bdf2_step = scene_.solver.method == Method::Bdf2;
-  StepStats first = attempt(h, can_split, reject_newton);
-  if (!first.ok && bdf2_step && energy_rejected_) {
-    // Neither BDF2 nor its trapezoidal start is dissipative step by step: a
-    // step that would gain energy is retried as backward Euler (order 1) at
-    // the same size, which keeps the history at h, before it costs a halving.
-    const std::string bdf2_failure = first.failure;
-    const int rejected = first.rejected + 1;
-    first = attempt(h, can_split, reject_newton, Method::Newton);
-    first.rejected += rejected;
-    if (first.ok) {
-      first.order_reduced = 1;
-      if (first.failure.empty()) first.failure = "bdf2 " + bdf2_failure + ": retried as backward Euler";
-      return first;
-    }
-  }
-  if (!first.ok && fallback && !first.newton_converged && first.finite) {
-    const std::string newton_failure = first.failure;
-    const int rejected = first.rejected + 1;
-    first = attempt(h, false, false, Method::ImplicitEuler);
-    first.rejected = rejected;
-    if (first.ok) {
-      first.linearized = 1;
-      first.newton_converged = false;
-      first.failure = newton_failure + " even after " + std::to_string(depth) +
-                      " step halvings: took a linearized backward-Euler step";
-      if (!first.linear_converged) {
-        first.failure += " (its linear solve short of tolerance, relative residual " +
-                         fmt(first.residual) + ")";
-      }
-      return first;
-    }
-  }
-  if (first.ok || !can_split) {
-    if (!first.ok && depth > 0) {
-      first.failure += " (after " + std::to_string(depth) + " step halvings)";
-    } else if (first.ok && !first.linear_converged) {
-      first.failure = "linear solver did not reach tolerance (relative residual " +
-                      fmt(first.residual) + ")";
-    } else if (first.ok && !first.newton_converged) {
-      first.failure = newtonFailure(first);
-    }
-    return first;
-  }
-  StepStats total;
-  total.substeps = 0;
-  total.rejected = 1;
-  total.halvings = depth + 1;
-  total.wall_time_s = first.wall_time_s;
-  total.cg_iterations = first.cg_iterations;
-  for (int half = 0; half < 2; ++half) {
-    const StepStats part = stepWithRecovery(0.5 * h, depth + 1);
-    accumulate(part, &total);
-    if (!part.ok) return total;
-  }
-  if (total.linearized > 0) {
-    total.failure = std::to_string(total.linearized) +
-                    " sub-step(s) taken as linearized backward-Euler steps: newton did not "
-                    "converge even after " + std::to_string(total.halvings) + " step halvings";
-  } else if (!total.linear_converged || !total.newton_converged) {
-    // A sub-step at the deepest halving was accepted short of its tolerance: say that.
-    total.failure = std::string(total.newton_converged ? "linear solver did not reach tolerance"
-                                                       : "newton did not converge") +
-                    " even after " + std::to_string(total.halvings) + " step halvings (accepted)";
-  } else {
-    total.failure = "recovered from: " + first.failure;
-  }
-  return total;
-}
 
 // ------------------------------------------------------------ events ----
 

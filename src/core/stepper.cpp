@@ -19,7 +19,7 @@ double secondsSince(Clock::time_point start) {
 }  // namespace
 
 CgResult Stepper::solveLinear(const Model& model, const VecX& b, VecX& x) {
-  return conjugateGradient(A_, model.springs, filter_, b, x, settings_.preconditioner,
+  return conjugateGradient(A_, model.springs, filter_, b, x, preconditioner_,
                            settings_.tolerance, settings_.max_iterations, cg_);
 }
 
@@ -37,6 +37,7 @@ StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
                         const CollidersOverStep& colliders) {
   const auto start = Clock::now();
   setPins(model, pins);
+  preconditioner_ = choosePreconditioner(settings_.preconditioner, model, h);
   const Method method = as.value_or(settings_.method);
   contact_on_ = !colliders.empty();
   StepStats stats;

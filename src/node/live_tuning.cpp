@@ -34,6 +34,7 @@ const char* preconditionerName(cloth_sim::Preconditioner p) {
     case cloth_sim::Preconditioner::BlockJacobi: return "block_jacobi";
     case cloth_sim::Preconditioner::Cholesky: return "cholesky";
     case cloth_sim::Preconditioner::Multigrid: return "multigrid";
+    case cloth_sim::Preconditioner::Auto: return "auto";
   }
   return "?";
 }

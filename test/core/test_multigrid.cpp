@@ -282,7 +282,7 @@ TEST(Multigrid, SelectableInTheScene) {
     FAIL() << "expected a SceneError";
   } catch (const SceneError& e) {
     EXPECT_NE(std::string(e.what()).find("solver.preconditioner: unknown preconditioner 'amg' "
-                                         "(expected none, block_jacobi, cholesky, multigrid)"),
+                                         "(expected auto, none, block_jacobi, cholesky, multigrid)"),
               std::string::npos)
         << e.what();
   }

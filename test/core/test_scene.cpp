@@ -158,7 +158,7 @@ TEST(SceneFiles, DemoLoadsWithItsValues) {
   EXPECT_EQ(scene.solver.dt, 1.0 / 120.0);
   EXPECT_EQ(scene.solver.tolerance, 1e-4);
   EXPECT_EQ(scene.solver.max_iterations, 500);
-  EXPECT_EQ(scene.solver.preconditioner, Preconditioner::BlockJacobi);
+  EXPECT_EQ(scene.solver.preconditioner, Preconditioner::Auto);
   EXPECT_TRUE(scene.solver.project_compression);
   EXPECT_TRUE(scene.events.empty());
 }
@@ -218,7 +218,7 @@ TEST(SceneDefaults, OnlyRowsAndColsAreNeeded) {
   EXPECT_EQ(scene.solver.dt, 0.004);
   EXPECT_EQ(scene.solver.tolerance, 1e-6);
   EXPECT_EQ(scene.solver.max_iterations, 500);
-  EXPECT_EQ(scene.solver.preconditioner, Preconditioner::BlockJacobi);
+  EXPECT_EQ(scene.solver.preconditioner, Preconditioner::Auto);
   EXPECT_TRUE(scene.solver.project_compression);
   EXPECT_EQ(scene.solver.newton_tolerance, 1e-8);
   EXPECT_EQ(scene.solver.newton_max_iterations, 20);

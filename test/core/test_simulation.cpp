@@ -137,7 +137,11 @@ TEST(Requests, StifferClothStretchesLess) {
   }
   ASSERT_NEAR(soft.time(), 200 * soft.dt(), 1e-9);
   ASSERT_EQ(stiff.time(), soft.time());
-  EXPECT_LT(maxStretchStrain(stiff), 0.02 * maxStretchStrain(soft));
+  // 100x stiffer, at least 10x less stretch. Not 100x: the top row is a
+  // taut string between the pins, whose strain under a load falls as
+  // k^(-2/3) (~22x); the converged backward-Euler answer shows ~15x (2.2e-3
+  // against 1.4e-4 at t = 2 s).
+  EXPECT_LT(maxStretchStrain(stiff), 0.1 * maxStretchStrain(soft));
 }
 
 TEST(Reset, RestoresInitialStateExactly) {

@@ -1,0 +1,141 @@
+// Simulation::stepWithRecovery: what happens when a step is not accepted.
+// An implicit_euler step that would gain energy is solved on to the converged
+// backward-Euler answer, a bdf2 one retried as backward Euler, both at the same
+// size; only then is the step split in halves (docs/design.md, "Accepting a step").
+#include <string>
+
+#include "cloth_sim/simulation.hpp"
+#include "step_failure_text.hpp"
+
+namespace cloth_sim {
+
+void Simulation::accumulate(const StepStats& part, StepStats* total) const {
+  total->cg_iterations += part.cg_iterations;
+  total->newton_iterations += part.newton_iterations;
+  total->residual = std::max(total->residual, part.residual);
+  total->newton_residual = std::max(total->newton_residual, part.newton_residual);
+  total->linear_converged = total->linear_converged && part.linear_converged;
+  total->newton_converged = total->newton_converged && part.newton_converged;
+  total->wall_time_s += part.wall_time_s;
+  total->assembly_s += part.assembly_s;
+  total->solve_s += part.solve_s;
+  total->work_in += part.work_in;
+  total->substeps += part.substeps;
+  total->rejected += part.rejected;
+  total->halvings = std::max(total->halvings, part.halvings);
+  total->linearized += part.linearized;
+  total->order_reduced += part.order_reduced;
+  total->refined += part.refined;
+  total->contact_passes += part.contact_passes;
+  total->contact_work += part.contact_work;
+  // The contact figures of the last sub-step are those at the end of the step.
+  total->contacts = part.contacts;
+  total->contact_normal_force = part.contact_normal_force;
+  total->max_penetration = std::max(total->max_penetration, part.max_penetration);
+  total->self_contacts = part.self_contacts;
+  total->min_self_distance = std::min(total->min_self_distance, part.min_self_distance);
+  total->self_collision_s += part.self_collision_s;
+  total->ok = total->ok && part.ok;
+  if (!part.failure.empty()) total->failure = part.failure;
+}
+
+StepStats Simulation::stepWithRecovery(double h, int depth) {
+  const bool can_split = scene_.solver.recovery && depth < scene_.solver.max_halvings;
+  // At the deepest halving Newton must still converge: where it cannot (a
+  // singular start, e.g. zero-length springs, makes the implicit equation
+  // scale-free, so halving does not help) the sub-step is taken as one
+  // linearized backward-Euler step, whose linear solve is checked as usual.
+  const bool iterative = scene_.solver.method == Method::Newton ||
+                         scene_.solver.method == Method::Bdf2;
+  const bool fallback = scene_.solver.recovery && !can_split && iterative;
+  const bool reject_newton = can_split || fallback;
+  const bool bdf2_step = scene_.solver.method == Method::Bdf2;
+  StepStats first = attempt(h, can_split, reject_newton);
+  if (!first.ok && energy_rejected_ && scene_.solver.method == Method::ImplicitEuler) {
+    // implicit_euler's step is the first Newton iteration of backward Euler.
+    // Where that linearization would create energy (a stiff spring turned or
+    // stretched beyond its tangent: a calm cloth of stretch 1e9 at dt 1/30
+    // gains 2.5e4 J in its first linearized step), the same step is solved on
+    // to the converged backward-Euler answer, which dissipates, instead of
+    // being split: the stiffer the cloth, the more halvings a split needed.
+    const StepStats linear = first;
+    first = attempt(h, can_split, can_split, Method::Newton);
+    first.wall_time_s += linear.wall_time_s;
+    first.cg_iterations += linear.cg_iterations;
+    first.newton_iterations += linear.newton_iterations;
+    if (first.ok) {
+      first.refined = 1;
+      return first;
+    }
+    first.rejected += linear.rejected + 1;
+    first.failure = "linearized step: " + linear.failure + "; solved on by newton: " + first.failure;
+  }
+  if (!first.ok && bdf2_step && energy_rejected_) {
+    // Neither BDF2 nor its trapezoidal start is dissipative step by step: a
+    // step that would gain energy is retried as backward Euler (order 1) at
+    // the same size, which keeps the history at h, before it costs a halving.
+    const std::string bdf2_failure = first.failure;
+    const int rejected = first.rejected + 1;
+    first = attempt(h, can_split, reject_newton, Method::Newton);
+    first.rejected += rejected;
+    if (first.ok) {
+      first.order_reduced = 1;
+      if (first.failure.empty()) first.failure = "bdf2 " + bdf2_failure + ": retried as backward Euler";
+      return first;
+    }
+  }
+  if (!first.ok && fallback && !first.newton_converged && first.finite) {
+    const std::string newton_failure = first.failure;
+    const int rejected = first.rejected + 1;
+    first = attempt(h, false, false, Method::ImplicitEuler);
+    first.rejected = rejected;
+    if (first.ok) {
+      first.linearized = 1;
+      first.newton_converged = false;
+      first.failure = newton_failure + " even after " + std::to_string(depth) +
+                      " step halvings: took a linearized backward-Euler step";
+      if (!first.linear_converged) {
+        first.failure += " (its linear solve short of tolerance, relative residual " +
+                         fmt(first.residual) + ")";
+      }
+      return first;
+    }
+  }
+  if (first.ok || !can_split) {
+    if (!first.ok && depth > 0) {
+      first.failure += " (after " + std::to_string(depth) + " step halvings)";
+    } else if (first.ok && !first.linear_converged) {
+      first.failure = "linear solver did not reach tolerance (relative residual " +
+                      fmt(first.residual) + ")";
+    } else if (first.ok && !first.newton_converged) {
+      first.failure = newtonFailure(first);
+    }
+    return first;
+  }
+  StepStats total;
+  total.substeps = 0;
+  total.rejected = 1;
+  total.halvings = depth + 1;
+  total.wall_time_s = first.wall_time_s;
+  total.cg_iterations = first.cg_iterations;
+  for (int half = 0; half < 2; ++half) {
+    const StepStats part = stepWithRecovery(0.5 * h, depth + 1);
+    accumulate(part, &total);
+    if (!part.ok) return total;
+  }
+  if (total.linearized > 0) {
+    total.failure = std::to_string(total.linearized) +
+                    " sub-step(s) taken as linearized backward-Euler steps: newton did not "
+                    "converge even after " + std::to_string(total.halvings) + " step halvings";
+  } else if (!total.linear_converged || !total.newton_converged) {
+    // A sub-step at the deepest halving was accepted short of its tolerance: say that.
+    total.failure = std::string(total.newton_converged ? "linear solver did not reach tolerance"
+                                                       : "newton did not converge") +
+                    " even after " + std::to_string(total.halvings) + " step halvings (accepted)";
+  } else {
+    total.failure = "recovered from: " + first.failure;
+  }
+  return total;
+}
+
+}  // namespace cloth_sim
