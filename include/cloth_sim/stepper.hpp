@@ -94,6 +94,7 @@ class Stepper {
   CgWorkspace cg_;
   VecX f_, rhs_, dv_, dfdx_v_, g_, x_trial_, v_trial_, g_trial_, delta_, delta_first_, ax_, av_, pinned_dv_;
   VecX x_best_, v_best_, g_best_;  ///< the line search's best trial
+  VecX v_start_;                   ///< Newton's first iterate
 };
 
 }  // namespace cloth_sim
