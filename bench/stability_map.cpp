@@ -116,7 +116,7 @@ int main(int argc, char** argv) {
 
   std::string status = "pass", reason;
   int max_halvings = 0;
-  long rejected = 0, substeps = 0, done = 0, linearized = 0;
+  long rejected = 0, substeps = 0, done = 0, linearized = 0, refined = 0;
   double max_strain = 0.0, previous = e0;
   const auto start = Clock::now();
   for (long n = 0; n < steps; ++n) {
@@ -129,6 +129,7 @@ int main(int argc, char** argv) {
     const cloth_sim::StepStats s = sim.step();
     rejected += s.rejected;
     linearized += s.linearized;
+    refined += s.refined;
     max_halvings = std::max(max_halvings, s.halvings);
     if (!s.ok) {
       status = "fail";
@@ -165,7 +166,7 @@ int main(int argc, char** argv) {
   std::printf(
       "{\"scene\": %s, \"method\": %s, \"stretch\": %s, \"dt\": %s, \"status\": %s, "
       "\"reason\": %s, \"max_halvings\": %d, \"rejected\": %ld, \"linearized\": %ld, "
-      "\"steps\": %ld, "
+      "\"refined\": %ld, \"steps\": %ld, "
       "\"substeps\": %ld, \"sim_time\": %s, \"wall_s\": %s, \"max_strain\": %s}\n",
       jsonString(scene_path).c_str(), jsonString(cloth_sim::toString(scene.solver.method)).c_str(),
       jsonNumber(sim.group(cloth_sim::SpringType::Stretch).present
@@ -174,7 +175,7 @@ int main(int argc, char** argv) {
                  6)
           .c_str(),
       jsonNumber(scene.solver.dt, 6).c_str(), jsonString(status).c_str(), jsonString(reason).c_str(),
-      max_halvings, rejected, linearized, done, substeps, jsonNumber(sim.time(), 6).c_str(),
+      max_halvings, rejected, linearized, refined, done, substeps, jsonNumber(sim.time(), 6).c_str(),
       jsonNumber(wall, 6).c_str(), jsonNumber(max_strain, 6).c_str());
   return 0;
 }

@@ -210,7 +210,7 @@ TEST_P(HardCase, PassesOrFailsLoudly) {
   Vec3 last_cm_x = centreOfMass(sim, sim.positions()), last_cm_v = Vec3::Zero();
   int last_substeps = 1;
 
-  long rejected = 0, substeps = 0, linearized = 0, order_reduced = 0;
+  long rejected = 0, substeps = 0, linearized = 0, order_reduced = 0, refined = 0;
   int halvings = 0;
   double previous = e0, max_after_transient = 0.0;
   for (long n = 0; n < steps; ++n) {
@@ -252,6 +252,7 @@ TEST_P(HardCase, PassesOrFailsLoudly) {
     substeps += stats.substeps;
     linearized += stats.linearized;
     order_reduced += stats.order_reduced;
+    refined += stats.refined;
     halvings = std::max(halvings, stats.halvings);
     last_substeps = stats.substeps;
 
@@ -334,10 +335,10 @@ TEST_P(HardCase, PassesOrFailsLoudly) {
   const double wall =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
   std::printf("[ hard     ] %s %s: passed %ld steps, %ld substeps, %ld rejected, %d halvings max, "
-              "%ld linearized, %ld bdf2 steps as backward Euler, strain %.3g after the "
-              "transient, %.2f s\n",
+              "%ld linearized, %ld bdf2 steps as backward Euler, %ld implicit_euler steps "
+              "refined by Newton, strain %.3g after the transient, %.2f s\n",
               run.file.c_str(), toString(run.method), steps, substeps, rejected, halvings,
-              linearized, order_reduced, max_after_transient, wall);
+              linearized, order_reduced, refined, max_after_transient, wall);
 }
 
 std::vector<HardRun> allRuns() {
