@@ -31,8 +31,8 @@ struct StepStats {
   /// (order 1) at the same size before any halving
   int order_reduced = 0;
   /// implicit_euler steps whose linearized answer would have gained energy,
-  /// solved on to the converged backward-Euler answer (newton) at the same
-  /// size, before any halving; not counted in `rejected`
+  /// solved on by Newton (up to newton_max_iterations, accepted on the energy
+  /// check) at the same size, before any halving; not counted in `rejected`
   int refined = 0;
   // contact (zero without colliders)
   int contacts = 0;              ///< nodes in contact at the end of the step

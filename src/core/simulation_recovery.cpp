@@ -1,7 +1,8 @@
 // Simulation::stepWithRecovery: what happens when a step is not accepted.
-// An implicit_euler step that would gain energy is solved on to the converged
-// backward-Euler answer, a bdf2 one retried as backward Euler, both at the same
-// size; only then is the step split in halves (docs/design.md, "Accepting a step").
+// An implicit_euler step that would gain energy is solved on by Newton towards
+// the backward-Euler answer, a bdf2 one retried as backward Euler, both at the
+// same size; only then is the step split in halves (docs/design.md, "Accepting
+// a step").
 #include <string>
 
 #include "cloth_sim/simulation.hpp"
