@@ -138,18 +138,20 @@ struct CgWorkspace {
 };
 
 /// What `auto` runs for a step of size h (docs/scene.md gives the measurements):
-/// - block_jacobi while the system is mass-dominated, kappa = h (c + h k) / m
-///   <= kAutoJacobiLimit (k, c the stiffest spring group's stiffness and
-///   damping, m the lightest node): there CG converges in tens of cheap
-///   iterations, cheaper than any factorization (the default 24 x 24 demo);
+/// - block_jacobi while kappa = h (c + h k) / m <= kAutoJacobiLimit (k, c the
+///   stiffest spring group's stiffness and damping, m the lightest node):
+///   there CG converges in a few hundred cheap iterations, cheaper than a
+///   factorization (the 24 x 24 demo, dt 1/120, CG to 1e-4: at kappa 2700
+///   block Jacobi 3.5 ms a step, cholesky 14.6; at 6700, 4.0 and 12.7);
 /// - cholesky up to kAutoCholeskyNodes nodes when stiffer: a factor of the
 ///   whole matrix solves at any stiffness in a few iterations, where block
-///   Jacobi needed thousands and halvings (stretch 1e6 on the demo: 12.6 ms
-///   and 207 rejected sub-steps a simulated 0.4 s, cholesky 6.4 ms and none);
+///   Jacobi needed thousands and halvings (the demo at kappa 13400: block
+///   Jacobi 158 ms a step and 36 rejected sub-steps a second, cholesky 53 ms
+///   and none);
 /// - multigrid beyond (the factorization's fill grows faster than the grid).
 /// Any other request is returned as it is.
 Preconditioner choosePreconditioner(Preconditioner requested, const Model& model, double h);
-constexpr double kAutoJacobiLimit = 1000.0;
+constexpr double kAutoJacobiLimit = 1.0e4;
 constexpr int kAutoCholeskyNodes = 4096;
 
 /// Preconditioned conjugate gradient on S A S y = S b, S the constraint

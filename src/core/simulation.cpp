@@ -169,6 +169,7 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
     pin_ends_.targets.push_back(end);
     pins_move = pins_move || end != x_save_.segment<3>(3 * node);
   }
+  pins_moved_ = pins_move;
   History history;
   if (has_prev_) history = History{&x_prev_, &v_prev_, h_prev_};
 
