@@ -45,8 +45,6 @@ class Stepper {
                  const History& history, VecX& x, VecX& v,
                  std::optional<Method> as = std::nullopt,
                  const CollidersOverStep& colliders = {});
-  /// The preconditioner the last step ran (solver.preconditioner, or what auto chose).
-  Preconditioner preconditioner() const { return preconditioner_; }
   /// Contacts of the last step.
   const ContactSet& contacts() const { return contact_; }
   /// Forgets the contact state (reset, or colliders changed).

@@ -153,7 +153,8 @@ TEST_F(CliTest, WritesStateStatsAndTrace) {
   for (const char* key :
        {"steps", "sim_time", "wall_time_s", "ms_per_step", "cg_iterations_mean",
         "cg_iterations_max", "newton_iterations_mean", "max_residual", "energy_initial",
-        "energy_final", "max_strain", "finite", "rejected_steps", "max_halvings", "failure"}) {
+        "energy_final", "max_strain", "finite", "rejected_steps", "refined_steps",
+        "order_reduced_steps", "max_halvings", "failure"}) {
     EXPECT_NE(stats.find("\"" + std::string(key) + "\":"), std::string::npos) << key << "\n" << stats;
   }
   EXPECT_NE(stats.find("\"steps\": 10,"), std::string::npos) << stats;
