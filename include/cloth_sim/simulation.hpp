@@ -180,7 +180,7 @@ class Simulation {
   double pending_work_ = 0.0;  ///< work by events since the last step
   StepStats last_stats_;
   bool energy_rejected_ = false;  ///< the last attempt failed on the energy check alone
-  bool pins_moved_ = false;       ///< a pin target moved during the last attempt
+  bool pins_jumped_ = false;  ///< a pin starts the last attempt away from its node (a jump)
   Stepper stepper_;
   PinnedEnds pin_ends_;  ///< reused per step
   EnergyParts measures_; ///< of the current state (energy check, stats)

@@ -45,6 +45,12 @@ class Stepper {
                  const History& history, VecX& x, VecX& v,
                  std::optional<Method> as = std::nullopt,
                  const CollidersOverStep& colliders = {});
+  /// Newton also stops once its decrement, the decrease of the incremental
+  /// potential its next full step predicts (-g.delta / 2, J), is at most
+  /// this; 0 (the default): only its residual tolerance. The recovery sets
+  /// it for implicit_euler's refined steps, which are accepted on the
+  /// energy, not on a Newton tolerance.
+  void setDecrementStop(double joules) { decrement_stop_ = joules; }
   /// Contacts of the last step.
   const ContactSet& contacts() const { return contact_; }
   /// Forgets the contact state (reset, or colliders changed).
@@ -93,6 +99,7 @@ class Stepper {
   VecX f_, rhs_, dv_, dfdx_v_, g_, x_trial_, v_trial_, g_trial_, delta_, delta_first_, ax_, av_, pinned_dv_;
   VecX x_best_, v_best_, g_best_;  ///< the line search's best trial
   VecX v_start_;                   ///< Newton's first iterate
+  double decrement_stop_ = 0.0;    ///< setDecrementStop
 };
 
 }  // namespace cloth_sim

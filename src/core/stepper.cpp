@@ -254,6 +254,7 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
   const double target = std::max(settings_.newton_tolerance * g0, round_off);
   stats.linear_converged = true;
   int it = 0;
+  bool decrement_reached = false;
   while (g_norm > target && it < max_iterations && std::isfinite(g_norm)) {
     if (it > 0) {  // the first iterate was assembled above
       t0 = Clock::now();
@@ -286,6 +287,7 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
     // ||g||, while the potential, which delta descends, lets Newton move.
     t0 = Clock::now();
     const double slope = g_.dot(delta_);  // d(potential)/d(alpha) at 0, up to damping
+    const bool last = -0.5 * slope <= decrement_stop_;  // nothing left worth a solve
     double phi = NAN;                     // potential at alpha = 0, when first needed
     double alpha = 1.0, best_norm = INFINITY;
     for (int ls = 0; ls < 10; ++ls, alpha *= 0.5) {
@@ -309,13 +311,17 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
     g_.swap(g_best_);
     g_norm = best_norm;
     stats.assembly_s += secondsSince(t0);
+    if (last) {
+      decrement_reached = true;
+      break;
+    }
   }
   stats.newton_iterations = it;
   stats.newton_residual = g0 > 0.0 ? g_norm / g0 : 0.0;
   // One iteration is a linearly implicit step by choice (like implicit_euler,
   // plus the line search): no tolerance was asked of it. With more, the
   // tolerance holds and missing it at the cap is reported (and acted on).
-  stats.newton_converged = g_norm <= target || max_iterations == 1;
+  stats.newton_converged = g_norm <= target || max_iterations == 1 || decrement_reached;
   for (size_t k = 0; k < pins_->nodes.size(); ++k) {
     x.segment<3>(3 * pins_->nodes[k]) = pins_->targets[k];  // exactly on target
   }
