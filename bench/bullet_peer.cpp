@@ -43,14 +43,19 @@ class TunedDeformableSolver : public btDeformableBodySolver {
 /// btDeformableMassSpringForce with one elastic stiffness k and one damping
 /// coefficient c per link instead of per force. Same formulas as Bullet 3.24's
 /// force, term for term: elastic force k (d - r d^) at the Newton iterate
-/// m_q, its exact Hessian (no compression clamp), damping c (dv.d^) d^ with
-/// d^ taken at the step's start position m_x (or c dv for relative_velocity),
-/// its velocity differential without the d^(x) dependence. Also counts calls.
+/// m_q, its exact Hessian (no compression clamp unless project_compression),
+/// damping c (dv.d^) d^ with d^ taken at the step's start position m_x (or
+/// c dv for relative_velocity), its velocity differential without the d^(x)
+/// dependence. Also counts calls. Two additions Bullet's own force lacks, both
+/// needed for contact (bench/README.md, "Contact"): addScaledHessian, and the
+/// optional compression clamp.
 class PerLinkMassSpringForce : public btDeformableMassSpringForce {
  public:
-  PerLinkMassSpringForce(std::vector<btScalar> k, std::vector<btScalar> c, bool along_spring)
+  PerLinkMassSpringForce(std::vector<btScalar> k, std::vector<btScalar> c, bool along_spring,
+                         bool project_compression)
       : btDeformableMassSpringForce(0.0, 0.0, along_spring),
-        k_(std::move(k)), c_(std::move(c)), along_spring_(along_spring) {}
+        k_(std::move(k)), c_(std::move(c)), along_spring_(along_spring),
+        project_compression_(project_compression) {}
 
   void addScaledForces(btScalar scale, TVStack& force) override {
     ++work_.force_evaluations;
@@ -131,11 +136,65 @@ class PerLinkMassSpringForce : public btDeformableMassSpringForce {
       btVector3 ddx = dx[a->index] - dx[b->index];
       btScalar ks = scale * k_[j];
       btScalar slack = (len - link.m_rl) / len;
+      // Compressed (len < r): the transverse term is negative and the system
+      // matrix indefinite once h^2 k (r/len - 1) exceeds a node's mass; then
+      // btConjugateGradient::solve stops at the first negative-curvature
+      // direction with a partial dv (dv = its right side if on iteration 1).
+      // project_compression clamps it at 0, as cloth_sim's option does.
+      if (project_compression_ && slack < 0) slack = 0;
       btScalar along = u.dot(ddx);
       // -k [u u^T + (1 - r/l)(I - u u^T)] (dx_a - dx_b)
       btVector3 f = u * (-ks * along) + u * (ks * along * slack) - ddx * (ks * slack);
       df[a->index] += f;
       df[b->index] -= f;
+    });
+  }
+
+  void addScaledHessian(btScalar scale) override {
+    // Implicit mode's predictor, btDeformableBackwardEulerObjective::
+    // applyExplicitForce: v* = v_n + M_eff^-1 h f(x_n + h v_n) (+ h g), with
+    // M_eff = M plus what each force adds here (reset to M every step). The
+    // node-rigid contact is detected and solved on v*, with M_eff as the
+    // node's mass (CollideSDF_RD: m_c5 = m_effectiveMass_inv); then the
+    // Newton solve keeps the velocity the contact solve gave each contact
+    // node (projected directions). Bullet's mass-spring force adds nothing,
+    // so v* is an explicit Euler step: unstable for drop32's springs at
+    // h = 1/1000 s (not yet at 1/2000 s), and then a contact node's v* (and
+    // the friction bound taken from its normal impulse) is garbage. Added here, as Bullet's
+    // btDeformableLinearElasticityForce adds its own: each node's diagonal
+    // block of the implicit system matrix, h c W + h^2 k [u u^T +
+    // max(0, 1 - r/l)(I - u u^T)], which makes v* a block-Jacobi step of the
+    // implicit solve. Free nodes' v* is discarded (setupDeformableSolve), so
+    // runs without contact do not change.
+    const btMatrix3x3 identity = btMatrix3x3::getIdentity();
+    auto outer = [](const btVector3& u) {
+      return btMatrix3x3(u[0] * u[0], u[0] * u[1], u[0] * u[2], u[1] * u[0], u[1] * u[1],
+                         u[1] * u[2], u[2] * u[0], u[2] * u[1], u[2] * u[2]);
+    };
+    forEachLink([&](const btSoftBody::Link& link, int j) {
+      btSoftBody::Node* a = link.m_n[0];
+      btSoftBody::Node* b = link.m_n[1];
+      btMatrix3x3 block;
+      block.setZero();
+      btVector3 d = b->m_q - a->m_q;
+      btScalar len = d.norm();
+      if (len > SIMD_EPSILON) {
+        btMatrix3x3 uu = outer(d / len);
+        btScalar slack = std::max<btScalar>(0.0, (len - link.m_rl) / len);
+        block = (uu + (identity - uu) * slack) * (scale * scale * k_[j]);
+      }
+      btMatrix3x3 damping = identity;  // relative velocity: c I
+      if (along_spring_) {             // along the spring at m_x: c d^ d^T
+        btVector3 dx = b->m_x - a->m_x;
+        if (dx.norm() > SIMD_EPSILON) {
+          damping = outer(dx.normalized());
+        } else {
+          damping.setZero();
+        }
+      }
+      block += damping * (scale * c_[j]);
+      if (a->m_im > 0) a->m_effectiveMass += block;
+      if (b->m_im > 0) b->m_effectiveMass += block;
     });
   }
 
@@ -188,6 +247,7 @@ class PerLinkMassSpringForce : public btDeformableMassSpringForce {
 
   std::vector<btScalar> k_, c_;
   bool along_spring_;
+  bool project_compression_;
   BulletWork work_;
   bool awaiting_solve_ = false;  ///< a residual was evaluated, no solve seen yet
 };
@@ -229,6 +289,9 @@ void validate(const Model& model, const VecX& x0, const VecX& v0,
   if (s.stock_force) {
     std::string why = stockForceLimitation(model);
     if (!why.empty()) fail("bullet.stock_force: " + why);
+    if (s.project_compression) {
+      fail("bullet.stock_force: btDeformableMassSpringForce has no project_compression");
+    }
   }
 }
 
@@ -297,6 +360,12 @@ BulletPeer::BulletPeer(const Model& model, const VecX& x0, const std::vector<int
         throw std::invalid_argument("contact.boxes: half extents must be > 0, friction >= 0");
       }
     }
+    if (settings.stock_force) {
+      // No addScaledHessian: Bullet's contact would work on an explicit predictor.
+      throw std::invalid_argument(
+          "bullet.stock_force: btDeformableMassSpringForce cannot carry contact "
+          "(no effective mass for the contact predictor); use the per-link force");
+    }
   }
   validate(model, x0, v0, pinned, settings);
   const int n = model.numNodes();
@@ -359,10 +428,12 @@ BulletPeer::BulletPeer(const Model& model, const VecX& x0, const std::vector<int
     m.world->addSoftBody(&body, 0, 0);              // filter group/mask 0: no pairs
   } else {
     // Bullet's deformable node-vs-rigid contact (as its DeformableRigid
-    // example): signed distance from the sparse SDF, a contact when the
-    // predicted position x_n + h v is within the margin; friction
-    // kDF * the rigid's friction, so kDF = 1 and the rigid carries mu.
-    // (SDF_RD alone does nothing in 3.24: nodes are tested only with SDF_RDN.)
+    // example): signed distance from the sparse SDF at x_n (implicit mode's
+    // predictDeformableMotion sets m_q = m_x), a contact when it is within
+    // the margin; the contact solve acts on the predictor's v* (see
+    // PerLinkMassSpringForce::addScaledHessian); friction kDF * the rigid's
+    // friction, so kDF = 1 and the rigid carries mu. (SDF_RD alone does
+    // nothing in 3.24: nodes are tested only with SDF_RDN.)
     body.m_cfg.collisions = btSoftBody::fCollision::SDF_RD | btSoftBody::fCollision::SDF_RDN;
     body.m_cfg.kDF = 1.0;
     body.m_cfg.kKHR = 1.0;
@@ -403,7 +474,8 @@ BulletPeer::BulletPeer(const Model& model, const VecX& x0, const std::vector<int
       m.spring_force = std::make_unique<btDeformableMassSpringForce>(
           stock_elastic, stock_damping, along, stock_bending);
     } else {
-      auto force = std::make_unique<PerLinkMassSpringForce>(std::move(k), std::move(c), along);
+      auto force = std::make_unique<PerLinkMassSpringForce>(std::move(k), std::move(c), along,
+                                                            settings.project_compression);
       m.per_link = force.get();
       m.spring_force = std::move(force);
     }

@@ -45,7 +45,19 @@ struct BulletSettings {
   /// flagged bending), so it is accepted only when every spring group present
   /// shares the damping and stretch and shear share the stiffness. false
   /// (default): the same force with per-link coefficients (bullet_peer.cpp).
+  /// Not with contact boxes: Bullet's class adds no effective mass
+  /// (addScaledHessian) for the contact predictor, so its contact flings.
   bool stock_force = false;
+
+  /// true: clamp the transverse stiffness k (1 - r/l)(I - u u^T) of a
+  /// compressed link (l < r) at zero in the Newton system, as cloth_sim's
+  /// solver.project_compression does; the force itself is unchanged. false
+  /// (default): Bullet's exact, then indefinite, Hessian, as its own force
+  /// has. Contact scenes need true: landing compresses links, and Bullet's CG
+  /// stops at the first negative-curvature direction with a partial (on its
+  /// first iteration: dv = right side) step, which flings the cloth.
+  /// Not with stock_force (Bullet's class has no such option).
+  bool project_compression = false;
 
   /// Contact only: btSparseSdf voxel size (m) of Bullet's node-rigid contact
   /// (btSoftBody::checkDeformableContact samples the collider's signed

@@ -472,7 +472,11 @@ Run runBullet(const Scene& base, const Setting& setting, const RunPlan& plan) {
   const VecX x_init = cloth_sim::initialPositions(base, model.rest_positions);
   const long steps = stepCount(plan.duration, setting.dt);
   const StaticColliders measure(base);
-  cloth_sim::bench::BulletPeer peer(model, x_init, base.pins, bulletSettings(setting),
+  cloth_sim::bench::BulletSettings settings = bulletSettings(setting);
+  // Contact needs the compression clamp (bullet_peer.hpp); hang scenes keep
+  // Bullet's exact Hessian.
+  settings.project_compression = !base.colliders.empty();
+  cloth_sim::bench::BulletPeer peer(model, x_init, base.pins, settings,
                                     initialVelocities(base), bulletContact(base));
   const int sample_count = static_cast<int>(std::lround(plan.duration / plan.sample));
   Sampler sampler(plan.sample, sample_count);
