@@ -307,9 +307,11 @@ Scene sceneFor(const Scene& base, const Setting& s) {
     scene.solver.preconditioner = Preconditioner::Cholesky;
   } else if (s.preconditioner == "multigrid") {
     scene.solver.preconditioner = Preconditioner::Multigrid;
+  } else if (s.preconditioner == "auto") {
+    scene.solver.preconditioner = Preconditioner::Auto;
   } else {
     throw UsageError{"preconditioner: unknown '" + s.preconditioner +
-                     "' (expected none, block_jacobi, cholesky, multigrid)"};
+                     "' (expected none, block_jacobi, cholesky, multigrid, auto)"};
   }
   cloth_sim::validateScene(scene);  // throws SceneError naming the field
   return scene;

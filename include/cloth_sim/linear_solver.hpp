@@ -137,22 +137,59 @@ struct CgWorkspace {
   int factorizations = 0;  ///< count, for the benchmark
 };
 
+/// kappa = h (c + h k) / m for a step of size h (k, c the stiffest spring
+/// group's stiffness and damping, m the lightest node): how far the stiffest
+/// coupling outweighs the lightest mass in the system matrix.
+double autoStiffness(const Model& model, double h);
+
 /// What `auto` runs for a step of size h (docs/scene.md gives the measurements):
-/// - block_jacobi while kappa = h (c + h k) / m <= kAutoJacobiLimit (k, c the
-///   stiffest spring group's stiffness and damping, m the lightest node):
-///   there CG converges in a few hundred cheap iterations, cheaper than a
-///   factorization (the 24 x 24 demo, dt 1/120, CG to 1e-4: at kappa 2700
-///   block Jacobi 3.5 ms a step, cholesky 14.6; at 6700, 4.0 and 12.7);
+/// - block_jacobi while kappa <= jacobi_limit: there CG usually converges in
+///   a few hundred cheap iterations, cheaper than a factorization (the 24 x 24
+///   demo, dt 1/120, CG to 1e-4: block Jacobi 1.5 ms a step at kappa 2700,
+///   3.1 ms at 26000; cholesky 4.3 and 8.4). kappa alone does not say when block
+///   Jacobi stops paying (a falling flat 20 x 20 cloth, CG to 1e-6, needed
+///   thousands of iterations at kappa 3750): AutoPreconditioner watches the
+///   iterations and lowers the limit;
 /// - cholesky up to kAutoCholeskyNodes nodes when stiffer: a factor of the
-///   whole matrix solves at any stiffness in a few iterations, where block
-///   Jacobi needed thousands and halvings (the demo at kappa 13400: block
-///   Jacobi 158 ms a step and 36 rejected sub-steps a second, cholesky 53 ms
-///   and none);
+///   whole matrix solves at any stiffness in a few iterations;
 /// - multigrid beyond (the factorization's fill grows faster than the grid).
 /// Any other request is returned as it is.
-Preconditioner choosePreconditioner(Preconditioner requested, const Model& model, double h);
-constexpr double kAutoJacobiLimit = 1.0e4;
+Preconditioner choosePreconditioner(Preconditioner requested, const Model& model, double h,
+                                    double jacobi_limit);
+/// A stiffer one than block Jacobi for this model: cholesky up to
+/// kAutoCholeskyNodes nodes, multigrid beyond.
+Preconditioner strongerPreconditioner(const Model& model);
+/// Above this kappa `auto` does not try block Jacobi at all (the demo at
+/// stretch 1e6, kappa 5e5: thousands of iterations; at 5e4 stretch, kappa
+/// 26000, still 220 and cheaper than the factor).
+constexpr double kAutoJacobiLimit = 5.0e4;
+/// A block-Jacobi solve that has not converged after this many iterations
+/// goes on with the stronger preconditioner (about where a cholesky solve
+/// costs less: 300 block-Jacobi iterations on the 20 x 20 and 24 x 24 cloths).
+constexpr int kAutoJacobiIterations = 400;
 constexpr int kAutoCholeskyNodes = 4096;
+
+/// `auto` across steps: block Jacobi where it pays, and once a block-Jacobi
+/// solve runs past kAutoJacobiIterations, the stronger preconditioner for
+/// the rest of it and for every later step at least half as stiff (kappa);
+/// block Jacobi is tried again only on a cloth made much softer (or a
+/// smaller step). So a scene never pays for a wrong guess twice, and no
+/// step is rejected for it.
+class AutoPreconditioner {
+ public:
+  /// This step's preconditioner (`requested` as it is unless Auto).
+  Preconditioner choose(Preconditioner requested, const Model& model, double h);
+  /// A block-Jacobi solve of this step did not converge in time: returns the
+  /// stronger preconditioner and remembers the step's kappa.
+  Preconditioner escalate(const Model& model);
+  /// Forgets what was learnt (a new scene).
+  void reset() { jacobi_limit_ = kAutoJacobiLimit; }
+  double jacobiLimit() const { return jacobi_limit_; }
+
+ private:
+  double jacobi_limit_ = kAutoJacobiLimit;
+  double kappa_ = 0.0;  ///< of the step being solved
+};
 
 /// Preconditioned conjugate gradient on S A S y = S b, S the constraint
 /// filter (Baraff & Witkin's modified PCG). `x` is the warm start and the

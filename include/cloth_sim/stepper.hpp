@@ -88,6 +88,7 @@ class Stepper {
 
   Scene::Solver settings_;
   Preconditioner preconditioner_ = Preconditioner::BlockJacobi;  ///< this step's (auto resolved)
+  AutoPreconditioner auto_;  ///< `auto`'s choice across steps
   ConstraintFilter filter_;  ///< pins (eliminated) and contacts (projected)
   ContactSet contact_;
   bool contact_on_ = false;  ///< this step has colliders

@@ -179,18 +179,38 @@ void applyPreconditioner(Preconditioner kind, CgWorkspace& ws, const ConstraintF
 
 }  // namespace
 
-Preconditioner choosePreconditioner(Preconditioner requested, const Model& model, double h) {
-  if (requested != Preconditioner::Auto) return requested;
+double autoStiffness(const Model& model, double h) {
   double stiffest = 0.0;
   for (const SpringGroup& group : model.groups) {
     if (group.present) stiffest = std::max(stiffest, group.damping + h * group.stiffness);
   }
   double lightest = std::numeric_limits<double>::infinity();
   for (double m : model.mass) lightest = std::min(lightest, m);
-  const double kappa = h * stiffest / lightest;
-  if (kappa <= kAutoJacobiLimit) return Preconditioner::BlockJacobi;
+  return h * stiffest / lightest;
+}
+
+Preconditioner strongerPreconditioner(const Model& model) {
   return model.numNodes() <= kAutoCholeskyNodes ? Preconditioner::Cholesky
                                                 : Preconditioner::Multigrid;
+}
+
+Preconditioner choosePreconditioner(Preconditioner requested, const Model& model, double h,
+                                    double jacobi_limit) {
+  if (requested != Preconditioner::Auto) return requested;
+  return autoStiffness(model, h) <= jacobi_limit ? Preconditioner::BlockJacobi
+                                                 : strongerPreconditioner(model);
+}
+
+Preconditioner AutoPreconditioner::choose(Preconditioner requested, const Model& model,
+                                          double h) {
+  if (requested != Preconditioner::Auto) return requested;
+  kappa_ = autoStiffness(model, h);
+  return choosePreconditioner(requested, model, h, jacobi_limit_);
+}
+
+Preconditioner AutoPreconditioner::escalate(const Model& model) {
+  jacobi_limit_ = std::min(jacobi_limit_, 0.5 * kappa_);
+  return strongerPreconditioner(model);
 }
 
 CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& springs,

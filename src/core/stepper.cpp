@@ -19,8 +19,20 @@ double secondsSince(Clock::time_point start) {
 }  // namespace
 
 CgResult Stepper::solveLinear(const Model& model, const VecX& b, VecX& x) {
-  return conjugateGradient(A_, model.springs, filter_, b, x, preconditioner_,
-                           settings_.tolerance, settings_.max_iterations, cg_);
+  const bool trial = settings_.preconditioner == Preconditioner::Auto &&
+                     preconditioner_ == Preconditioner::BlockJacobi;
+  const int cap = trial ? std::min(settings_.max_iterations, kAutoJacobiIterations)
+                        : settings_.max_iterations;
+  CgResult cg = conjugateGradient(A_, model.springs, filter_, b, x, preconditioner_,
+                                  settings_.tolerance, cap, cg_);
+  if (!trial || cg.converged) return cg;
+  // `auto` guessed block Jacobi and it does not pay: on from where it got to.
+  preconditioner_ = auto_.escalate(model);
+  const int spent = cg.iterations;
+  cg = conjugateGradient(A_, model.springs, filter_, b, x, preconditioner_, settings_.tolerance,
+                         settings_.max_iterations, cg_);
+  cg.iterations += spent;
+  return cg;
 }
 
 void Stepper::setPins(const Model& model, const PinnedEnds& pins) {
@@ -37,7 +49,7 @@ StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
                         const CollidersOverStep& colliders) {
   const auto start = Clock::now();
   setPins(model, pins);
-  preconditioner_ = choosePreconditioner(settings_.preconditioner, model, h);
+  preconditioner_ = auto_.choose(settings_.preconditioner, model, h);
   const Method method = as.value_or(settings_.method);
   contact_on_ = !colliders.empty();
   StepStats stats;
