@@ -96,11 +96,20 @@ struct CgResult {
 /// Pinned nodes become identity rows so the pattern stays the same; a
 /// projected node's rows and columns are filtered (S A S, plus (I - S) times
 /// its mean diagonal), so the factor is of the constrained system itself.
+///
+/// On a rows x cols grid, each bend spring's coupling S (ends two grid lines
+/// apart) is rerouted through the node between them, 2S on each half, as the
+/// multigrid does (multigrid.hpp): the matrix factored is then >= A and
+/// exceeds it by at most the bend-to-stretch ratio, so CG still converges in
+/// one or two iterations, but its stencil has 9 points instead of 25 and
+/// its factorization (80 % of a stiff demo's step) costs a fraction.
 class CholeskyFactor {
  public:
-  /// Refills the values and factorizes. Returns false if not positive definite.
+  /// Refills the values and factorizes. `grid_cols` > 0: the nodes form a
+  /// grid with that many columns (bend springs rerouted); 0: A as it is.
+  /// Returns false if not positive definite.
   bool factorize(const SystemMatrix& A, const std::vector<Spring>& springs,
-                 const ConstraintFilter& filter);
+                 const ConstraintFilter& filter, int grid_cols);
   void solve(const VecX& r, VecX& z) const { z = ldlt_.solve(r); }
   /// A factor of a recent matrix is still a very good preconditioner: it is
   /// reused until a solve needs more than this many CG iterations.
@@ -112,13 +121,17 @@ class CholeskyFactor {
   void invalidate() { valid_ = false; }
 
  private:
-  void buildPattern(int num_nodes, const std::vector<Spring>& springs);
+  void buildPattern(int num_nodes, const std::vector<Spring>& springs, int grid_cols);
   Eigen::SparseMatrix<double> matrix_;
-  std::vector<int> diag_index_;      ///< value index of entry (0,0) of each node block, per column
-  std::vector<int> coupling_index_;  ///< same for spring blocks (row j, column i)
+  std::vector<int> diag_index_;  ///< value index of entry (0,0) of each node block, per column
+  /// Per spring: its middle node if rerouted (else -1), and the value
+  /// indices (9 a spring, entry (r, c) at 3c + r) of the blocks it adds to:
+  /// block (max, min) of its ends, or of its two halves.
+  std::vector<int> via_, block_a_, block_b_;
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower> ldlt_;
   int num_nodes_ = -1;
   size_t num_springs_ = 0;
+  int grid_cols_ = 0;
   bool valid_ = false;
   ConstraintFilter filter_;  ///< the filter the factor was made for
 };
@@ -135,6 +148,21 @@ struct CgWorkspace {
   int multigrid_max_solves = 1;
   int last_iterations = 0;
   int factorizations = 0;  ///< count, for the benchmark
+  /// Reused Cholesky factors that went stale in a row, and solves left that
+  /// factor afresh at once instead of trying the old factor first: Newton on
+  /// a stiff cloth changes the matrix so much between iterates that each
+  /// trial wasted kStaleFactorIterations triangular solves (1.5 times a
+  /// factorization) before the refactorization came anyway.
+  int stale_factors = 0;
+  int fresh_factor_solves = 0;
+  /// Cholesky factors of the rerouted matrix (CholeskyFactor), and how many
+  /// factors are left to make of A itself after the rerouted one did not pay.
+  /// Only for implicit_euler: newton and bdf2 solve crumpled starts to tight
+  /// tolerances, where the rerouted factor leaves different near-null-space
+  /// errors and their Newton paths (hence rejections) change (a collapsed
+  /// start with newton: 226 rejected sub-steps instead of 39).
+  bool reroute_bends = false;
+  int plain_factors = 0;
 };
 
 /// kappa = h (c + h k) / m for a step of size h (k, c the stiffest spring

@@ -146,6 +146,8 @@ class Simulation {
   /// One step of h, no recovery; on failure the state is left as it was.
   /// reject_linear / reject_newton: a linear solve / Newton iteration short of
   /// its tolerance is a failure. as: see Stepper::step.
+  /// Work the pins did over a step from (x_save_, v_save_) to (x1, v1) (J).
+  double pinWork(const VecX& x1, const VecX& v1, double h);
   StepStats attempt(double h, bool reject_linear, bool reject_newton,
                     std::optional<Method> as = std::nullopt);
   /// attempt(h); a bdf2 step that gains energy is retried as backward Euler;
@@ -181,6 +183,7 @@ class Simulation {
   StepStats last_stats_;
   bool energy_rejected_ = false;  ///< the last attempt failed on the energy check alone
   bool pins_jumped_ = false;  ///< a pin starts the last attempt away from its node (a jump)
+  bool refining_ = false;     ///< the attempt refines a linearized step (stepWithRecovery)
   Stepper stepper_;
   PinnedEnds pin_ends_;  ///< reused per step
   EnergyParts measures_; ///< of the current state (energy check, stats)

@@ -2,6 +2,7 @@
 // end positions. Buffers live here, so a step allocates nothing once sized.
 #pragma once
 
+#include <functional>
 #include <optional>
 #include <vector>
 
@@ -51,6 +52,13 @@ class Stepper {
   /// it for implicit_euler's refined steps, which are accepted on the
   /// energy, not on a Newton tolerance.
   void setDecrementStop(double joules) { decrement_stop_ = joules; }
+  /// Newton also stops at the first iterate (x1, v1) that `accept` takes
+  /// (the recovery's energy check for a refined step) once its decrement is
+  /// at most `decrement` (J); empty: never.
+  void setEnergyStop(std::function<bool(const VecX&, const VecX&)> accept, double decrement) {
+    energy_stop_ = std::move(accept);
+    energy_stop_decrement_ = decrement;
+  }
   /// Contacts of the last step.
   const ContactSet& contacts() const { return contact_; }
   /// Forgets the contact state (reset, or colliders changed).
@@ -101,6 +109,8 @@ class Stepper {
   VecX x_best_, v_best_, g_best_;  ///< the line search's best trial
   VecX v_start_;                   ///< Newton's first iterate
   double decrement_stop_ = 0.0;    ///< setDecrementStop
+  std::function<bool(const VecX&, const VecX&)> energy_stop_;  ///< setEnergyStop
+  double energy_stop_decrement_ = 0.0;
 };
 
 }  // namespace cloth_sim

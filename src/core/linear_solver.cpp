@@ -73,10 +73,25 @@ void SystemMatrix::multiplyAll(const VecX& x_in, VecX& y_out) const {
   }
 }
 
-void CholeskyFactor::buildPattern(int n, const std::vector<Spring>& springs) {
-  // Lower triangle only: node blocks (i, i) and spring blocks (max, min).
+namespace {
+
+/// The node between a bend spring's ends on a grid with `cols` columns, or -1
+/// (not two grid lines apart in a straight or diagonal line, or no grid).
+int viaNode(const Spring& s, int n, int cols) {
+  if (cols <= 0 || n % cols != 0) return -1;
+  const int dr = s.j / cols - s.i / cols, dc = s.j % cols - s.i % cols;
+  const bool two_lines = std::max(std::abs(dr), std::abs(dc)) == 2 && dr % 2 == 0 && dc % 2 == 0;
+  return two_lines ? (s.i / cols + dr / 2) * cols + s.i % cols + dc / 2 : -1;
+}
+
+}  // namespace
+
+void CholeskyFactor::buildPattern(int n, const std::vector<Spring>& springs, int grid_cols) {
+  via_.assign(springs.size(), -1);
+  for (size_t k = 0; k < springs.size(); ++k) via_[k] = viaNode(springs[k], n, grid_cols);
+  // Lower triangle only: node blocks (i, i) and coupling blocks (max, min).
   std::vector<Eigen::Triplet<double>> entries;
-  entries.reserve(6 * n + 9 * springs.size());
+  entries.reserve(6 * n + 9 * 2 * springs.size());
   auto block = [&](int row_node, int col_node) {
     for (int c = 0; c < 3; ++c) {
       for (int r = 0; r < 3; ++r) {
@@ -85,40 +100,71 @@ void CholeskyFactor::buildPattern(int n, const std::vector<Spring>& springs) {
       }
     }
   };
+  auto pair = [&](int a, int b) { block(std::max(a, b), std::min(a, b)); };
   for (int i = 0; i < n; ++i) block(i, i);
-  for (const Spring& s : springs) block(std::max(s.i, s.j), std::min(s.i, s.j));
+  for (size_t k = 0; k < springs.size(); ++k) {
+    const Spring& s = springs[k];
+    if (via_[k] < 0) {
+      pair(s.i, s.j);
+    } else {
+      pair(s.i, via_[k]);
+      pair(via_[k], s.j);
+    }
+  }
   matrix_.resize(3 * n, 3 * n);
   matrix_.setFromTriplets(entries.begin(), entries.end());
   matrix_.makeCompressed();
-  auto index_of = [&](int row, int col) {
-    return static_cast<int>(&matrix_.coeffRef(row, col) - matrix_.valuePtr());
+  auto index_of = [&](int a, int b, int* nine) {  // entries (r, c) of block (max, min) at 3c + r
+    const int hi = std::max(a, b), lo = std::min(a, b);
+    for (int c = 0; c < 3; ++c) {
+      for (int r = 0; r < 3; ++r) {
+        nine[3 * c + r] =
+            static_cast<int>(&matrix_.coeffRef(3 * hi + r, 3 * lo + c) - matrix_.valuePtr());
+      }
+    }
   };
   diag_index_.resize(9 * n);
   for (int i = 0; i < n; ++i) {
     for (int c = 0; c < 3; ++c) {
-      for (int r = c; r < 3; ++r) diag_index_[9 * i + 3 * c + r] = index_of(3 * i + r, 3 * i + c);
+      for (int r = c; r < 3; ++r) {
+        diag_index_[9 * i + 3 * c + r] =
+            static_cast<int>(&matrix_.coeffRef(3 * i + r, 3 * i + c) - matrix_.valuePtr());
+      }
     }
   }
-  coupling_index_.resize(9 * springs.size());
+  block_a_.assign(9 * springs.size(), -1);
+  block_b_.assign(9 * springs.size(), -1);
   for (size_t k = 0; k < springs.size(); ++k) {
-    const int hi = std::max(springs[k].i, springs[k].j), lo = std::min(springs[k].i, springs[k].j);
-    for (int c = 0; c < 3; ++c) {
-      for (int r = 0; r < 3; ++r) coupling_index_[9 * k + 3 * c + r] = index_of(3 * hi + r, 3 * lo + c);
-    }
+    const Spring& s = springs[k];
+    index_of(s.i, via_[k] < 0 ? s.j : via_[k], &block_a_[9 * k]);
+    if (via_[k] >= 0) index_of(via_[k], s.j, &block_b_[9 * k]);
   }
   ldlt_.analyzePattern(matrix_);
   num_nodes_ = n;
   num_springs_ = springs.size();
+  grid_cols_ = grid_cols;
 }
 
 bool CholeskyFactor::factorize(const SystemMatrix& A, const std::vector<Spring>& springs,
-                               const ConstraintFilter& filter) {
+                               const ConstraintFilter& filter, int grid_cols) {
   const std::vector<char>& free = filter.freeMask();
   const int n = A.numNodes();
-  if (n != num_nodes_ || springs.size() != num_springs_) buildPattern(n, springs);
+  if (n != num_nodes_ || springs.size() != num_springs_ || grid_cols != grid_cols_) {
+    buildPattern(n, springs, grid_cols);
+  }
+  // Node blocks: A's, plus what rerouting adds (S more at each end, 4S in the middle).
+  std::vector<SymBlock> diag = A.fullDiagonal();
+  for (size_t k = 0; k < springs.size(); ++k) {
+    if (via_[k] < 0) continue;
+    const SymBlock S = A.couplingBlock(static_cast<int>(k));
+    diag[springs[k].i].addScaled(1.0, S);
+    diag[springs[k].j].addScaled(1.0, S);
+    diag[via_[k]].addScaled(4.0, S);
+  }
   double* values = matrix_.valuePtr();
+  std::fill(values, values + matrix_.nonZeros(), 0.0);
   for (int i = 0; i < n; ++i) {
-    Mat3 D = free[i] ? A.fullDiag(i) : Mat3::Identity();
+    Mat3 D = free[i] ? diag[i].toMat3() : Mat3::Identity();
     if (filter.isProjected(i)) {
       const Mat3 S = filter.projector(i);
       D = S * D * S + (Mat3::Identity() - S) * (D.trace() / 3.0);
@@ -127,16 +173,26 @@ bool CholeskyFactor::factorize(const SystemMatrix& A, const std::vector<Spring>&
       for (int r = c; r < 3; ++r) values[diag_index_[9 * i + 3 * c + r]] = D(r, c);
     }
   }
-  for (size_t k = 0; k < springs.size(); ++k) {
-    const int i = springs[k].i, j = springs[k].j;
-    const bool both_free = free[i] && free[j];
-    Mat3 C = -A.coupling(static_cast<int>(k));  // symmetric: A_ij = A_ji = -S
-    const int hi = std::max(i, j), lo = std::min(i, j);
-    if (both_free && (filter.isProjected(hi) || filter.isProjected(lo))) {
-      C = filter.projector(hi) * C * filter.projector(lo);  // block (hi, lo) of S A S
+  // Coupling -w S between nodes a and b, block (max, min) of S A S.
+  auto couple = [&](const int* index, int a, int b, const Mat3& C) {
+    if (!free[a] || !free[b]) return;
+    const int hi = std::max(a, b), lo = std::min(a, b);
+    Mat3 block = C;
+    if (filter.isProjected(hi) || filter.isProjected(lo)) {
+      block = filter.projector(hi) * C * filter.projector(lo);
     }
     for (int c = 0; c < 3; ++c) {
-      for (int r = 0; r < 3; ++r) values[coupling_index_[9 * k + 3 * c + r]] = both_free ? C(r, c) : 0.0;
+      for (int r = 0; r < 3; ++r) values[index[3 * c + r]] += block(r, c);
+    }
+  };
+  for (size_t k = 0; k < springs.size(); ++k) {
+    const Spring& s = springs[k];
+    const Mat3 S = A.coupling(static_cast<int>(k));
+    if (via_[k] < 0) {
+      couple(&block_a_[9 * k], s.i, s.j, -S);
+    } else {
+      couple(&block_a_[9 * k], s.i, via_[k], -2.0 * S);
+      couple(&block_b_[9 * k], via_[k], s.j, -2.0 * S);
     }
   }
   ldlt_.factorize(matrix_);
@@ -228,6 +284,7 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
 
   CgResult result;
   bool fresh_factor = false;
+  bool rerouted = false;  ///< a fresh factor of the rerouted matrix (CholeskyFactor)
   const double b_norm = filter.norm(b);
   if (!(b_norm > 0.0)) {
     x.setZero();
@@ -250,10 +307,18 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
   } else if (preconditioner == Preconditioner::Cholesky) {
     if (!ws.cholesky) ws.cholesky = std::make_shared<CholeskyFactor>();
     fresh_factor = !ws.cholesky->isValidFor(filter) ||
-                   ws.last_iterations > CholeskyFactor::kRefactorIterations;
+                   ws.last_iterations > CholeskyFactor::kRefactorIterations ||
+                   ws.fresh_factor_solves > 0;
+    if (ws.fresh_factor_solves > 0) --ws.fresh_factor_solves;
     if (fresh_factor) {
       ++ws.factorizations;
-      if (!ws.cholesky->factorize(A, springs, filter)) {
+      rerouted = ws.reroute_bends && ws.plain_factors == 0 && ws.grid_cols > 0;
+      if (ws.plain_factors > 0) --ws.plain_factors;
+      if (rerouted && !ws.cholesky->factorize(A, springs, filter, ws.grid_cols)) {
+        rerouted = false;  // an indefinite coupling made it so: A itself, for a while
+        ws.plain_factors = 64;
+      }
+      if (!rerouted && !ws.cholesky->factorize(A, springs, filter, 0)) {
         result.relative_residual = 1.0;
         return result;  // not positive definite: the caller's recovery decides
       }
@@ -315,7 +380,12 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
   }
   if ((reused_factor || reused_multigrid) && r_norm > target && k < max_iterations) {
     // Too stale for this matrix: rebuild from it and go on from x.
-    if (reused_factor) ws.cholesky->invalidate();
+    if (reused_factor) {
+      ws.cholesky->invalidate();
+      // Stale again: the next 2, 4, 8, 16 solves factor afresh at once.
+      ws.stale_factors = std::min(ws.stale_factors + 1, 4);
+      ws.fresh_factor_solves = 1 << ws.stale_factors;
+    }
     if (reused_multigrid) ws.multigrid->invalidate();
     CgResult more = conjugateGradient(A, springs, filter, b, x, preconditioner, tolerance,
                                       max_iterations - k, ws);
@@ -323,6 +393,12 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
     return more;
   }
   if (preconditioner == Preconditioner::Multigrid) ws.multigrid->recordSolve(k);
+  if (reused_factor && r_norm <= target) ws.stale_factors = 0;  // reuse pays again
+  // The rerouted matrix is close to A on a cloth, not on a collapsed or
+  // crumpled one (bend springs across folds): a fresh factor of it that does
+  // not solve in kRefactorIterations is set aside for the next 64 factors
+  // (a collapsed start: 1200 CG iterations a step instead of 240).
+  if (rerouted && k > CholeskyFactor::kRefactorIterations) ws.plain_factors = 64;
   result.iterations = k;
   ws.last_iterations = k;
   result.relative_residual = r_norm / b_norm;

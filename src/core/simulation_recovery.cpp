@@ -82,7 +82,9 @@ StepStats Simulation::stepWithRecovery(double h, int depth) {
     // down to 1/32 steps and still failed).
     const StepStats linear = first;
     stepper_.setDecrementStop(kRefineDecrement * energyScale());
+    refining_ = true;
     first = attempt(h, can_split, false, Method::Newton);
+    refining_ = false;
     stepper_.setDecrementStop(0.0);
     first.wall_time_s += linear.wall_time_s;
     first.cg_iterations += linear.cg_iterations;

@@ -41,6 +41,7 @@ void Stepper::setPins(const Model& model, const PinnedEnds& pins) {
   pins_ = &pins;
   cg_.grid_rows = model.rows;
   cg_.grid_cols = model.cols;
+  cg_.reroute_bends = settings_.method == Method::ImplicitEuler;
   cg_.multigrid_max_solves = settings_.multigrid_reuse;
 }
 
@@ -323,7 +324,7 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
     g_.swap(g_best_);
     g_norm = best_norm;
     stats.assembly_s += secondsSince(t0);
-    if (last) {
+    if (last || (energy_stop_ && -0.5 * slope <= energy_stop_decrement_ && energy_stop_(x, v1))) {
       decrement_reached = true;
       break;
     }
