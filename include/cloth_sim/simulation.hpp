@@ -146,6 +146,11 @@ class Simulation {
   /// One step of h, no recovery; on failure the state is left as it was.
   /// reject_linear / reject_newton: a linear solve / Newton iteration short of
   /// its tolerance is a failure. as: see Stepper::step.
+  /// An implicit_euler step solved on by Newton towards backward Euler and
+  /// accepted on the energy check (stepWithRecovery): `refined` when ok.
+  StepStats refine(double h, bool can_split);
+  /// Whether a pin starts the next step away from its node (a jump).
+  bool pinsJump() const;
   /// Work the pins did over a step from (x_save_, v_save_) to (x1, v1) (J).
   double pinWork(const VecX& x1, const VecX& v1, double h);
   StepStats attempt(double h, bool reject_linear, bool reject_newton,
@@ -184,6 +189,7 @@ class Simulation {
   bool energy_rejected_ = false;  ///< the last attempt failed on the energy check alone
   bool pins_jumped_ = false;  ///< a pin starts the last attempt away from its node (a jump)
   bool refining_ = false;     ///< the attempt refines a linearized step (stepWithRecovery)
+  bool refine_next_ = false;  ///< the last refined step took > 1 Newton iteration
   Stepper stepper_;
   PinnedEnds pin_ends_;  ///< reused per step
   EnergyParts measures_; ///< of the current state (energy check, stats)

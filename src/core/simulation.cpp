@@ -64,6 +64,7 @@ void Simulation::reset() {
   v_prev_.resize(0);
   has_prev_ = false;
   h_prev_ = 0.0;
+  refine_next_ = false;
   t_ = 0.0;
   step_count_ = 0;
   next_event_ = 0;

@@ -49,6 +49,29 @@ void Simulation::accumulate(const StepStats& part, StepStats* total) const {
   if (!part.failure.empty()) total->failure = part.failure;
 }
 
+bool Simulation::pinsJump() const {
+  for (const auto& [node, pin] : pins_) {
+    if (pin.position != x_.segment<3>(3 * node)) return true;
+  }
+  return false;
+}
+
+StepStats Simulation::refine(double h, bool can_split) {
+  stepper_.setDecrementStop(kRefineDecrement * energyScale());
+  refining_ = true;
+  StepStats s = attempt(h, can_split, false, Method::Newton);
+  refining_ = false;
+  stepper_.setDecrementStop(0.0);
+  if (s.ok) {
+    s.refined = 1;
+    // implicit_euler promises no Newton tolerance (see stepWithRecovery).
+    s.newton_converged = true;
+    s.failure.clear();
+    refine_next_ = s.newton_iterations > 1;
+  }
+  return s;
+}
+
 StepStats Simulation::stepWithRecovery(double h, int depth) {
   const bool can_split = scene_.solver.recovery && depth < scene_.solver.max_halvings;
   // At the deepest halving Newton must still converge: where it cannot (a
@@ -60,9 +83,17 @@ StepStats Simulation::stepWithRecovery(double h, int depth) {
   const bool fallback = scene_.solver.recovery && !can_split && iterative;
   const bool reject_newton = can_split || fallback;
   const bool bdf2_step = scene_.solver.method == Method::Bdf2;
+  const bool implicit_euler = scene_.solver.method == Method::ImplicitEuler;
+  if (implicit_euler && refine_next_ && !pinsJump()) {
+    // The last step's linearized answer gained energy and Newton needed more
+    // than one iteration: this one very likely does too (a stiff cloth),
+    // so it goes to Newton at once (a third of a stiff demo step's solves).
+    StepStats direct = refine(h, can_split);
+    if (direct.ok) return direct;
+  }
   StepStats first = attempt(h, can_split, reject_newton);
-  if (!first.ok && energy_rejected_ && !pins_jumped_ &&
-      scene_.solver.method == Method::ImplicitEuler) {
+  refine_next_ = false;
+  if (!first.ok && energy_rejected_ && !pins_jumped_ && implicit_euler) {
     // implicit_euler's step is the first Newton iteration of backward Euler.
     // Where that linearization would create energy (a stiff spring turned or
     // stretched beyond its tangent: a calm cloth of stretch 1e9 at dt 1/30
@@ -81,21 +112,11 @@ StepStats Simulation::stepWithRecovery(double h, int depth) {
     // step: those steps are refined (compression at stretch 1e7 was split
     // down to 1/32 steps and still failed).
     const StepStats linear = first;
-    stepper_.setDecrementStop(kRefineDecrement * energyScale());
-    refining_ = true;
-    first = attempt(h, can_split, false, Method::Newton);
-    refining_ = false;
-    stepper_.setDecrementStop(0.0);
+    first = refine(h, can_split);
     first.wall_time_s += linear.wall_time_s;
     first.cg_iterations += linear.cg_iterations;
     first.newton_iterations += linear.newton_iterations;
-    if (first.ok) {
-      first.refined = 1;
-      // implicit_euler promises no Newton tolerance (see above).
-      first.newton_converged = true;
-      first.failure.clear();
-      return first;
-    }
+    if (first.ok) return first;
     first.rejected += linear.rejected + 1;
     first.failure = "linearized step: " + linear.failure + "; solved on by newton: " + first.failure;
   }
