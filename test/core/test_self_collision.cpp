@@ -66,7 +66,7 @@ VecX foldedPositions(const Model& m, double z0, double r) {
   return x;
 }
 
-/// Pairs of triangles sharing no node that intersect (exact-as-possible test).
+/// Pairs of triangles sharing no node that intersect (exact test).
 int intersections(const Model& m, const VecX& x) {
   int count = 0;
   const auto& T = m.triangles;
@@ -216,9 +216,7 @@ double topLayerSlide(double friction) {
   return std::abs(sim.position(edge).x() - x_start);
 }
 
-// DISABLED, known failure: the folded start (layers 8 mm apart) trips the
-// same near-coplanar false positives of trianglesIntersect (2 pairs).
-TEST(SelfCollision, DISABLED_HighFrictionHoldsAFoldedLayer) {
+TEST(SelfCollision, HighFrictionHoldsAFoldedLayer) {
   const double slides = topLayerSlide(0.0);
   const double holds = topLayerSlide(5.0);
   EXPECT_GT(slides, 0.01);
