@@ -8,11 +8,14 @@
 //     separation along the linear motion gets an inelastic impulse at its
 //     time of impact;
 //  3. impact zones: the nodes of pairs that still collide are merged into
-//     zones, each moved as one rigid body (linear and angular momentum kept),
+//     zones, each moved as one rigid body (linear and angular momentum kept;
+//     in a collider's plane, or not at all, when it holds nodes on a collider),
 //     until CCD finds nothing outside a zone. A rigid motion keeps distances,
 //     so, from an intersection-free x0, the end state is intersection-free.
-// Impulses act on positions (x1 moves by w_i / m_i J n), and the velocity of
-// every moved node is recomputed as (x1 - x0) / h: they only take energy out.
+// Impulses act on positions (x1 moves by w_i / m_i J n) and change each
+// moved node's velocity by its displacement over h: inelastic, no bounce.
+// Pinned nodes have infinite mass (their work through the filter is
+// reported), nodes on a collider infinite mass along its normal only.
 #pragma once
 
 #include <limits>
@@ -79,7 +82,7 @@ class SelfCollision {
 
   /// Inputs: the step's length h, its start x0 (3n) and solved end x1 (3n),
   /// v the solved end velocity, `masses`. Output: x1 and v filtered as above
-  /// (v = (x1 - x0) / h on every node the filter moved, untouched elsewhere).
+  /// (v += (x1 out - x1 in) / h: untouched where the filter moved nothing).
   /// Fails (ok = false, x1 and v then partly filtered: the caller rolls the
   /// step back) when a zone holds fixed nodes that do not move as one
   /// translation, or the zones do not settle within their round limit.
