@@ -49,7 +49,8 @@ Impact edgeEdgeCcd(const std::array<Vec3, 4>& x0, const std::array<Vec3, 4>& x1,
 /// Touching counts. Non-coplanar triangles intersect iff an edge of one meets
 /// the other (the ends of their common segment lie on edges); coplanar ones
 /// are tested in 2D (edge crossings, a corner inside the other). Orientation
-/// signs in long double, zero counted as touching: errs towards "intersects".
+/// signs are exact (exact_predicates.hpp), so the answer is exact; only two
+/// degenerate (collinear) triangles are compared by a rounded distance.
 bool trianglesIntersect(const Vec3& a0, const Vec3& a1, const Vec3& a2, const Vec3& b0,
                         const Vec3& b1, const Vec3& b2);
 

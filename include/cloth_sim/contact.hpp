@@ -133,6 +133,9 @@ class ContactSet {
   double work(const VecX& x0, const VecX& x1, const VecX& reaction, double bh) const;
   bool empty() const { return nodes_.empty(); }
   std::vector<int> contactNodes() const;
+  /// Per contactNodes() entry: the surface normal at the end of the step
+  /// for a node on one surface, zero for one wedged between two.
+  std::vector<Vec3> contactNormals() const;
 
  private:
   static constexpr int kMaxPlanes = 2;

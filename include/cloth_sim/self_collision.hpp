@@ -8,11 +8,14 @@
 //     separation along the linear motion gets an inelastic impulse at its
 //     time of impact;
 //  3. impact zones: the nodes of pairs that still collide are merged into
-//     zones, each moved as one rigid body (linear and angular momentum kept),
+//     zones, each moved as one rigid body (linear and angular momentum kept;
+//     in a collider's plane, or not at all, when it holds nodes on a collider),
 //     until CCD finds nothing outside a zone. A rigid motion keeps distances,
 //     so, from an intersection-free x0, the end state is intersection-free.
-// Impulses act on positions (x1 moves by w_i / m_i J n), and the velocity of
-// every moved node is recomputed as (x1 - x0) / h: they only take energy out.
+// Impulses act on positions (x1 moves by w_i / m_i J n) and change each
+// moved node's velocity by its displacement over h: inelastic, no bounce.
+// Pinned nodes have infinite mass (their work through the filter is
+// reported), nodes on a collider infinite mass along its normal only.
 #pragma once
 
 #include <limits>
@@ -39,14 +42,37 @@ struct SelfCollisionResult {
   int zone_rounds = 0;  ///< rounds of impact zones (0: impulses sufficed)
   int zone_nodes = 0;   ///< nodes moved rigidly
   int candidates = 0;   ///< broad-phase pairs of the first query
+  /// work the pins did on the cloth through the filter (J): the impulses
+  /// they held against and the zones they dragged, times their velocity
+  double pin_work = 0.0;
 };
 
-/// Which nodes the filter may not move, and which it should move little.
+/// Which nodes the filter may not move, and which it may move only along a
+/// collider's surface.
 struct SelfCollisionMasses {
   std::vector<int> fixed;  ///< pinned: infinite mass, their x1 is prescribed
-  std::vector<int> heavy;  ///< held by a collider contact: infinite mass for
-                           ///< impulses, 1000x their mass inside a zone
+  std::vector<int> heavy;  ///< held by a collider contact
+  /// per `heavy` entry: its surface normal (a node then has infinite mass
+  /// along it and its own mass across it), or zero (infinite mass: wedged)
+  std::vector<Vec3> heavy_normal;
 };
+
+class ContactSet;
+struct CollidersOverStep;
+
+/// The masses for a step ending at x1: the pinned nodes fixed; the nodes the
+/// contact solve holds, and every node within `reach` of the thickness band
+/// of a collider at x1, held along that surface's normal (wedged if two).
+/// Sliding across the normal cannot take a node into a convex collider.
+void selfCollisionMasses(const std::vector<int>& pinned, const ContactSet& contacts,
+                         const CollidersOverStep& colliders, const VecX& x1, double reach,
+                         SelfCollisionMasses* out);
+
+/// The first node the filter moved (before -> after) that ends deeper
+/// inside a collider's thickness band than it started (-1: none, else
+/// `which` says which node and collider).
+int pushedIntoCollider(const CollidersOverStep& colliders, const VecX& before,
+                       const VecX& after, std::string* which);
 
 class SelfCollision {
  public:
@@ -56,7 +82,7 @@ class SelfCollision {
 
   /// Inputs: the step's length h, its start x0 (3n) and solved end x1 (3n),
   /// v the solved end velocity, `masses`. Output: x1 and v filtered as above
-  /// (v = (x1 - x0) / h on every node the filter moved, untouched elsewhere).
+  /// (v += (x1 out - x1 in) / h: untouched where the filter moved nothing).
   /// Fails (ok = false, x1 and v then partly filtered: the caller rolls the
   /// step back) when a zone holds fixed nodes that do not move as one
   /// translation, or the zones do not settle within their round limit.
@@ -85,12 +111,13 @@ class SelfCollision {
   void gather(const std::array<int, 4>& nodes, const VecX& x, std::array<Vec3, 4>* out) const;
   std::array<int, 4> nodesOf(int kind, int a, int b) const;
   /// Applies pair's inelastic normal impulse and friction to x1.
-  bool impulse(const Pair& pair, const VecX& x0, VecX& x1) const;
+  /// Adds the work of pinned nodes of the pair, times h^2, to pin_work.
+  bool impulse(const Pair& pair, const VecX& x0, VecX& x1, double* pin_work) const;
   /// CCD of every candidate pair not inside one zone; fills hits_.
   void detect(const VecX& x0, const VecX& x1, bool skip_zones);
   /// Moves each zone rigidly; false (with `failure`) if a zone cannot move.
-  bool moveZones(const VecX& x0, const SelfCollisionMasses& masses, VecX& x1,
-                 std::string* failure, int* moved);
+  /// Adds the work of pins dragging a zone, times h^2, to pin_work.
+  bool moveZones(const VecX& x0, VecX& x1, std::string* failure, int* moved, double* pin_work);
   int find(int i);
 
   bool enabled_ = false;
@@ -100,7 +127,11 @@ class SelfCollision {
   CollisionMesh mesh_;
   SpatialHash hash_;
   CandidatePairs pairs_;
-  std::vector<double> inv_mass_, zone_mass_;
+  std::vector<double> mass_, inv_mass_;  ///< inv_mass_ 0: pinned or wedged
+  std::vector<Vec3> normal_;      ///< a contact's surface normal, else zero
+  /// Displacement of node i when an impulse of dx (displacement units times
+  /// mass) acts on it with weight w: w / m dx, less its part along normal_.
+  Vec3 nodeShare(int i, double w, const Vec3& dx) const;
   std::vector<int> parent_;  ///< zone union-find (a node alone is its own root)
   std::vector<char> in_zone_;
   std::vector<char> fixed_;

@@ -181,6 +181,7 @@ class Simulation {
   double max_penetration_ = 0.0;
   SelfCollision self_collision_;
   SelfCollisionMasses self_masses_;  ///< reused per step
+  VecX x_pre_self_;                  ///< x1 before the self-collision filter
   double min_self_distance_ = std::numeric_limits<double>::infinity();
   size_t next_event_ = 0;
   double work_in_total_ = 0.0;

@@ -2,6 +2,8 @@
 // See collision_geometry.hpp for the contracts.
 #include "cloth_sim/collision_geometry.hpp"
 
+#include "cloth_sim/exact_predicates.hpp"
+
 #include <algorithm>
 #include <cmath>
 
@@ -176,27 +178,16 @@ Impact edgeEdgeCcd(const std::array<Vec3, 4>& x0, const std::array<Vec3, 4>& x1,
 }
 
 // ------------------------------------------------ triangle–triangle ----
+// Every sign below is exact (exact_predicates.hpp), so the answer is exact
+// for non-degenerate triangles: touching counts as intersecting, and
+// coplanar neighbours that only come close are not flagged.
 namespace {
 
-using Real = long double;
-
-int sign(Real v) { return (v > 0) - (v < 0); }
-
-/// Sign of det[b - a, c - a, d - a]: d above (+), on (0), below (-) abc.
-int orient3d(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
-  const Real bx = Real(b.x()) - a.x(), by = Real(b.y()) - a.y(), bz = Real(b.z()) - a.z();
-  const Real cx = Real(c.x()) - a.x(), cy = Real(c.y()) - a.y(), cz = Real(c.z()) - a.z();
-  const Real dx = Real(d.x()) - a.x(), dy = Real(d.y()) - a.y(), dz = Real(d.z()) - a.z();
-  return sign(bx * (cy * dz - cz * dy) - by * (cx * dz - cz * dx) + bz * (cx * dy - cy * dx));
-}
-
 struct P2 {
-  Real x, y;
+  double x, y;
 };
 
-int orient2d(const P2& a, const P2& b, const P2& c) {
-  return sign((b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x));
-}
+int orient(const P2& a, const P2& b, const P2& c) { return orient2d(a.x, a.y, b.x, b.y, c.x, c.y); }
 
 bool onSegment2d(const P2& a, const P2& b, const P2& p) {  // p collinear with ab
   return std::min(a.x, b.x) <= p.x && p.x <= std::max(a.x, b.x) && std::min(a.y, b.y) <= p.y &&
@@ -204,8 +195,8 @@ bool onSegment2d(const P2& a, const P2& b, const P2& p) {  // p collinear with a
 }
 
 bool segmentsIntersect2d(const P2& a, const P2& b, const P2& c, const P2& d) {
-  const int o1 = orient2d(a, b, c), o2 = orient2d(a, b, d);
-  const int o3 = orient2d(c, d, a), o4 = orient2d(c, d, b);
+  const int o1 = orient(a, b, c), o2 = orient(a, b, d);
+  const int o3 = orient(c, d, a), o4 = orient(c, d, b);
   if (o1 != o2 && o3 != o4 && o1 * o2 <= 0 && o3 * o4 <= 0) return true;
   if (o1 == 0 && onSegment2d(a, b, c)) return true;
   if (o2 == 0 && onSegment2d(a, b, d)) return true;
@@ -215,47 +206,50 @@ bool segmentsIntersect2d(const P2& a, const P2& b, const P2& c, const P2& d) {
 }
 
 bool pointInTriangle2d(const P2& p, const P2& a, const P2& b, const P2& c) {
-  const int s1 = orient2d(a, b, p), s2 = orient2d(b, c, p), s3 = orient2d(c, a, p);
+  const int s1 = orient(a, b, p), s2 = orient(b, c, p), s3 = orient(c, a, p);
   return (s1 >= 0 && s2 >= 0 && s3 >= 0) || (s1 <= 0 && s2 <= 0 && s3 <= 0);
 }
 
-/// Projects onto the coordinate plane that keeps the most of `normal`.
+/// Drops the coordinate axis along which triangle abc projects with the
+/// largest area, chosen among the projections whose exact area is nonzero:
+/// then the projection is one-to-one on abc's plane, and coplanar questions
+/// keep their answers in 2D. `valid` is false for a degenerate triangle
+/// (every projection exactly a segment or a point).
 struct Projector {
   int u = 0, v = 1;
-  explicit Projector(const Vec3& normal) {
-    const Vec3 n = normal.cwiseAbs();
-    if (n.x() >= n.y() && n.x() >= n.z()) u = 1, v = 2;
-    else if (n.y() >= n.z()) u = 0, v = 2;
+  bool valid = false;
+  Projector(const Vec3& a, const Vec3& b, const Vec3& c) {
+    const Vec3 n = (b - a).cross(c - a).cwiseAbs();  // rounded: only to rank the axes
+    double best = -1.0;
+    for (int drop = 0; drop < 3; ++drop) {
+      const int i = (drop + 1) % 3, j = (drop + 2) % 3;
+      if (orient2d(a[i], a[j], b[i], b[j], c[i], c[j]) != 0 && n[drop] > best) {
+        best = n[drop], u = i, v = j, valid = true;
+      }
+    }
   }
   P2 operator()(const Vec3& p) const { return P2{p[u], p[v]}; }
 };
 
-/// Segment pq and triangle abc lying in one plane (normal n).
+/// Segment pq and non-degenerate triangle abc lying in one plane.
 bool coplanarSegmentTriangle(const Vec3& p, const Vec3& q, const Vec3& a, const Vec3& b,
-                             const Vec3& c, const Vec3& n) {
-  const Projector pr(n);
+                             const Vec3& c, const Projector& pr) {
   const P2 P = pr(p), Q = pr(q), A = pr(a), B = pr(b), C = pr(c);
   return pointInTriangle2d(P, A, B, C) || pointInTriangle2d(Q, A, B, C) ||
          segmentsIntersect2d(P, Q, A, B) || segmentsIntersect2d(P, Q, B, C) ||
          segmentsIntersect2d(P, Q, C, A);
 }
 
-/// Closed segment pq against closed triangle abc.
-bool segmentTriangle(const Vec3& p, const Vec3& q, const Vec3& a, const Vec3& b,
-                     const Vec3& c) {
+/// Closed segment pq against closed non-degenerate triangle abc.
+bool segmentTriangle(const Vec3& p, const Vec3& q, const Vec3& a, const Vec3& b, const Vec3& c,
+                     const Projector& abc) {
   const int sp = orient3d(a, b, c, p), sq = orient3d(a, b, c, q);
   if (sp * sq > 0) return false;
-  // The line pq crosses the plane within pq: it meets the triangle iff it
-  // passes on the same side of all three edges (Plücker signs). All three
-  // zero: the line lies in the triangle's plane after all (one end rounded
-  // off it), so it is the coplanar case.
+  if (sp == 0 && sq == 0) return coplanarSegmentTriangle(p, q, a, b, c, abc);
+  // pq crosses the plane within pq (not lying in it): it meets the triangle
+  // iff its line passes on one side of all three edges (Plücker signs),
+  // zero meaning through an edge or a corner.
   const int s1 = orient3d(p, q, a, b), s2 = orient3d(p, q, b, c), s3 = orient3d(p, q, c, a);
-  if ((sp == 0 && sq == 0) || (s1 == 0 && s2 == 0 && s3 == 0)) {
-    Vec3 n = (b - a).cross(c - a);
-    if (n.squaredNorm() == 0.0) n = (q - p).cross(b - a).cross(q - p);  // any plane holding both
-    if (n.squaredNorm() == 0.0) n = Vec3::UnitZ();
-    return coplanarSegmentTriangle(p, q, a, b, c, n);
-  }
   return (s1 >= 0 && s2 >= 0 && s3 >= 0) || (s1 <= 0 && s2 <= 0 && s3 <= 0);
 }
 
@@ -264,11 +258,28 @@ bool segmentTriangle(const Vec3& p, const Vec3& q, const Vec3& a, const Vec3& b,
 bool trianglesIntersect(const Vec3& a0, const Vec3& a1, const Vec3& a2, const Vec3& b0,
                         const Vec3& b1, const Vec3& b2) {
   const std::array<Vec3, 3> A = {a0, a1, a2}, B = {b0, b1, b2};
-  // Disjoint boxes: exact (no arithmetic), and it keeps far-apart pairs away
-  // from the rounded orientation signs below.
+  // Disjoint boxes: exact (no arithmetic), and cheap.
   const Vec3 alo = a0.cwiseMin(a1).cwiseMin(a2), ahi = a0.cwiseMax(a1).cwiseMax(a2);
   const Vec3 blo = b0.cwiseMin(b1).cwiseMin(b2), bhi = b0.cwiseMax(b1).cwiseMax(b2);
   if ((ahi.array() < blo.array()).any() || (bhi.array() < alo.array()).any()) return false;
+  const Projector pa(a0, a1, a2), pb(b0, b1, b2);
+  if (!pa.valid && !pb.valid) {
+    // Both degenerate (segments or points): their edges meet. The only case
+    // decided by a rounded distance; a mesh's triangles are not collinear.
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j)
+        if (edgeEdgeDistance(A[i], A[(i + 1) % 3], B[j], B[(j + 1) % 3]) == 0.0) return true;
+    return false;
+  }
+  // One degenerate: it is the union of its edges.
+  if (!pa.valid || !pb.valid) {
+    const auto& S = pa.valid ? B : A;
+    const auto& T = pa.valid ? A : B;
+    const Projector& pt = pa.valid ? pa : pb;
+    for (int k = 0; k < 3; ++k)
+      if (segmentTriangle(S[k], S[(k + 1) % 3], T[0], T[1], T[2], pt)) return true;
+    return false;
+  }
   // Quick reject: B wholly on one side of A's plane, or A of B's.
   const int sb0 = orient3d(a0, a1, a2, b0), sb1 = orient3d(a0, a1, a2, b1),
             sb2 = orient3d(a0, a1, a2, b2);
@@ -277,18 +288,18 @@ bool trianglesIntersect(const Vec3& a0, const Vec3& a1, const Vec3& a2, const Ve
             sa2 = orient3d(b0, b1, b2, a2);
   if ((sa0 > 0 && sa1 > 0 && sa2 > 0) || (sa0 < 0 && sa1 < 0 && sa2 < 0)) return false;
   if (sb0 == 0 && sb1 == 0 && sb2 == 0) {
-    // Coplanar (or A degenerate): an edge of A meets B, or B lies inside A.
+    // Coplanar: an edge of one crosses the other, or one holds the other.
     for (int k = 0; k < 3; ++k) {
-      if (segmentTriangle(A[k], A[(k + 1) % 3], b0, b1, b2)) return true;
+      if (coplanarSegmentTriangle(A[k], A[(k + 1) % 3], b0, b1, b2, pa)) return true;
     }
-    for (int k = 0; k < 3; ++k) {
-      if (segmentTriangle(B[k], B[(k + 1) % 3], a0, a1, a2)) return true;
-    }
-    return false;
+    const P2 P = pa(b0), Q = pa(a0), R = pa(a1), S = pa(a2);
+    return pointInTriangle2d(P, Q, R, S);
   }
+  // Not coplanar: the triangles' common part is a segment whose ends lie on
+  // edges, so some edge of one meets the other.
   for (int k = 0; k < 3; ++k) {
-    if (segmentTriangle(A[k], A[(k + 1) % 3], b0, b1, b2)) return true;
-    if (segmentTriangle(B[k], B[(k + 1) % 3], a0, a1, a2)) return true;
+    if (segmentTriangle(A[k], A[(k + 1) % 3], b0, b1, b2, pb)) return true;
+    if (segmentTriangle(B[k], B[(k + 1) % 3], a0, a1, a2, pa)) return true;
   }
   return false;
 }

@@ -43,6 +43,15 @@ std::vector<int> ContactSet::contactNodes() const {
   return out;
 }
 
+std::vector<Vec3> ContactSet::contactNormals() const {
+  std::vector<Vec3> out;
+  out.reserve(nodes_.size());
+  for (const NodeContact& c : nodes_) {
+    out.push_back(c.num_planes == 1 ? c.plane[0].normal : Vec3::Zero());
+  }
+  return out;
+}
+
 void ContactSet::setPlane(Plane& p, int collider, const SurfacePoint& local,
                           const CollidersOverStep& colliders, double h) const {
   const Pose& start = colliders.start[collider];

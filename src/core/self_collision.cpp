@@ -14,7 +14,10 @@ namespace {
 
 constexpr int kCcdRounds = 4;     // impulse rounds before zones (Bridson et al. use a few)
 constexpr int kZoneRounds = 100;  // zone merges before the step is given up
-constexpr double kHeavy = 1e3;    // zone mass factor of a node held by a collider
+// Largest displacement of a node per unit of gap an impulse may cause: 1 to 2
+// when all four nodes move (weights >= 1/3 of the pair's), 1/w for a lone
+// movable node of weight w.
+constexpr double kMaxReach = 4.0;
 
 }  // namespace
 
@@ -74,31 +77,52 @@ void SelfCollision::makePair(int kind, int a, int b, const std::array<Vec3, 4>& 
   pair->target = pair->distance;
 }
 
-bool SelfCollision::impulse(const Pair& pair, const VecX& x0, VecX& x1) const {
+Vec3 SelfCollision::nodeShare(int i, double w, const Vec3& dx) const {
+  return (w * inv_mass_[i]) * (dx - normal_[i] * normal_[i].dot(dx));
+}
+
+bool SelfCollision::impulse(const Pair& pair, const VecX& x0, VecX& x1, double* pin_work) const {
   Vec3 rel1 = Vec3::Zero(), rel0 = Vec3::Zero();
-  double denom = 0.0;
+  // K: the relative position's displacement per impulse, sum w_k^2 / m_k
+  // P_k, P_k the projector off node k's contact normal (identity if none).
+  Mat3 K = Mat3::Zero();
   for (int k = 0; k < 4; ++k) {
-    rel1 += pair.w[k] * x1.segment<3>(3 * pair.node[k]);
-    rel0 += pair.w[k] * x0.segment<3>(3 * pair.node[k]);
-    denom += pair.w[k] * pair.w[k] * inv_mass_[pair.node[k]];
+    const int i = pair.node[k];
+    rel1 += pair.w[k] * x1.segment<3>(3 * i);
+    rel0 += pair.w[k] * x0.segment<3>(3 * i);
+    K += (pair.w[k] * pair.w[k] * inv_mass_[i]) *
+         (Mat3::Identity() - normal_[i] * normal_[i].transpose());
   }
   const double gap = pair.n.dot(rel1);
+  const double denom = pair.n.dot(K * pair.n);
   if (!(gap < pair.target) || !(denom > 0.0)) return false;
+  // Where the movable nodes carry little of the closest points (the rest
+  // pinned or held by a collider), closing the gap would throw them far
+  // (the gap over their small weight): the impact zones handle that pair.
+  double reach = 0.0;
+  for (int k = 0; k < 4; ++k) reach = std::max(reach, nodeShare(pair.node[k], pair.w[k], pair.n).norm());
+  if (reach > kMaxReach * denom) return false;
   // Inelastic: the normal impulse brings the end gap up to the target and no
   // further (no bounce). Impulses are in displacement units: node k moves by
-  // w_k / m_k J, the relative position by J sum w_k^2 / m_k.
+  // w_k / m_k P_k J, the relative position by K J.
   const double dg = pair.target - gap;
   Vec3 dx = (dg / denom) * pair.n;
-  // Coulomb: the tangential relative displacement over the step is cut by at
-  // most mu times the normal one (a friction impulse <= mu times the normal
-  // impulse), never reversed.
+  // Coulomb: a tangential impulse at most mu times the normal one, and no
+  // larger than what stops the tangential relative displacement of the step
+  // (never reversed).
   const Vec3 slip = rel1 - rel0 - pair.n * pair.n.dot(rel1 - rel0);
   const double slip_norm = slip.norm();
   if (friction_ > 0.0 && slip_norm > 0.0) {
-    dx -= (std::min(friction_ * dg, slip_norm) / (denom * slip_norm)) * slip;
+    const Vec3 dir = slip / slip_norm;
+    const double stiff = dir.dot(K * dir);
+    if (stiff > 0.0) dx -= std::min(friction_ * dg / denom, slip_norm / stiff) * dir;
   }
   for (int k = 0; k < 4; ++k) {
-    x1.segment<3>(3 * pair.node[k]) += pair.w[k] * inv_mass_[pair.node[k]] * dx;
+    const int i = pair.node[k];
+    x1.segment<3>(3 * i) += nodeShare(i, pair.w[k], dx);
+    // A pin holds its node against the impulse's share w_k dx / h (momentum)
+    // while moving at (x1 - x0) / h: it does work -w_k dx . (x1 - x0) / h^2.
+    if (fixed_[i]) *pin_work -= pair.w[k] * dx.dot(x1.segment<3>(3 * i) - x0.segment<3>(3 * i));
   }
   return true;
 }
@@ -133,9 +157,8 @@ void SelfCollision::detect(const VecX& x0, const VecX& x1, bool skip_zones) {
   for (const auto& [ea, eb] : pairs_.edge_edge) test(1, ea, eb);
 }
 
-bool SelfCollision::moveZones(const VecX& x0, const SelfCollisionMasses& masses, VecX& x1,
-                              std::string* failure, int* moved) {
-  (void)masses;
+bool SelfCollision::moveZones(const VecX& x0, VecX& x1, std::string* failure, int* moved,
+                              double* pin_work) {
   const int n = mesh_.num_nodes;
   std::vector<std::vector<int>> zones;
   std::vector<int> zone_of(n, -1);
@@ -170,17 +193,42 @@ bool SelfCollision::moveZones(const VecX& x0, const SelfCollisionMasses& masses,
       }
     }
     if (first_fixed >= 0) {
+      // The pins drag the zone along: their impulse (the zone's momentum
+      // change) times their velocity d / h is their work.
       const Vec3 d = x1.segment<3>(3 * first_fixed) - x0.segment<3>(3 * first_fixed);
-      for (int i : zone) x1.segment<3>(3 * i) = x0.segment<3>(3 * i) + d;
+      for (int i : zone) {
+        const Vec3 to = x0.segment<3>(3 * i) + d;
+        *pin_work += mass_[i] * (to - x1.segment<3>(3 * i)).dot(d);
+        x1.segment<3>(3 * i) = to;
+      }
+      continue;
+    }
+    // Nodes held by a collider may not move along its normal: with one
+    // normal shared by all of them (a table), the zone moves in the plane
+    // (a translation across the normal, a rotation about it), which keeps
+    // every node's height; with several, or a wedged node, it stays at x0
+    // (a rigid motion too, and x0 was clear of the colliders).
+    Vec3 axis = Vec3::Zero();
+    bool frozen = false;
+    for (int i : zone) {
+      if (inv_mass_[i] == 0.0) frozen = true;  // wedged between two surfaces
+      if (normal_[i].isZero(0.0)) continue;
+      if (axis.isZero(0.0)) axis = normal_[i];
+      else if ((normal_[i] - axis).norm() > 1e-9) frozen = true;
+    }
+    if (frozen) {
+      for (int i : zone) x1.segment<3>(3 * i) = x0.segment<3>(3 * i);
       continue;
     }
     // Rigid motion with the zone's momentum (displacements stand for
     // velocities times h): centre of mass, then the angular velocity
     // I^-1 L about it, applied as an exact rotation so distances are kept.
+    // With the true masses this is the mass-orthogonal projection of the
+    // zone's motion on rigid motions: its kinetic energy does not grow.
     double mass = 0.0;
     Vec3 c0 = Vec3::Zero(), dc = Vec3::Zero();
     for (int i : zone) {
-      const double m = zone_mass_[i];
+      const double m = mass_[i];
       mass += m;
       c0 += m * x0.segment<3>(3 * i);
       dc += m * (x1.segment<3>(3 * i) - x0.segment<3>(3 * i));
@@ -190,14 +238,21 @@ bool SelfCollision::moveZones(const VecX& x0, const SelfCollisionMasses& masses,
     Vec3 L = Vec3::Zero();
     Mat3 inertia = Mat3::Zero();
     for (int i : zone) {
-      const double m = zone_mass_[i];
+      const double m = mass_[i];
       const Vec3 r = x0.segment<3>(3 * i) - c0;
       L += m * r.cross(x1.segment<3>(3 * i) - x0.segment<3>(3 * i) - dc);
       inertia += m * (r.squaredNorm() * Mat3::Identity() - r * r.transpose());
     }
     // A zone on a line (or one node) has a singular inertia: the
     // pseudo-inverse leaves the rotation about that line out.
-    const Vec3 omega = inertia.completeOrthogonalDecomposition().solve(L);
+    Vec3 omega;
+    if (axis.isZero(0.0)) {
+      omega = inertia.completeOrthogonalDecomposition().solve(L);
+    } else {
+      dc -= axis * axis.dot(dc);
+      const double about = axis.dot(inertia * axis);
+      omega = about > 0.0 ? Vec3(axis * (axis.dot(L) / about)) : Vec3::Zero();
+    }
     const double angle = omega.norm();
     const Mat3 R = angle > 0.0 ? Eigen::AngleAxisd(angle, omega / angle).toRotationMatrix()
                                : Mat3::Identity();
@@ -210,15 +265,22 @@ SelfCollisionResult SelfCollision::apply(const Model& model, double h, const Vec
                                          const SelfCollisionMasses& masses, VecX& x1, VecX& v) {
   SelfCollisionResult result;
   const int n = model.numNodes();
+
   inv_mass_.resize(n);
-  zone_mass_.resize(n);
+  mass_ = model.mass;
+  normal_.assign(n, Vec3::Zero());
   fixed_.assign(n, 0);
-  for (int i = 0; i < n; ++i) {
-    inv_mass_[i] = model.mass[i] > 0.0 ? 1.0 / model.mass[i] : 0.0;
-    zone_mass_[i] = model.mass[i];
+  for (int i = 0; i < n; ++i) inv_mass_[i] = model.mass[i] > 0.0 ? 1.0 / model.mass[i] : 0.0;
+  for (size_t k = 0; k < masses.heavy.size(); ++k) {
+    const int i = masses.heavy[k];
+    const Vec3 normal = k < masses.heavy_normal.size() ? masses.heavy_normal[k] : Vec3::Zero();
+    if (normal.isZero(0.0)) {
+      inv_mass_[i] = 0.0;
+    } else {
+      normal_[i] = normal.normalized();
+    }
   }
-  for (int i : masses.heavy) inv_mass_[i] = 0.0, zone_mass_[i] *= kHeavy;
-  for (int i : masses.fixed) inv_mass_[i] = 0.0, fixed_[i] = 1;
+  for (int i : masses.fixed) inv_mass_[i] = 0.0, fixed_[i] = 1, normal_[i].setZero();
   x1_in_ = x1;
 
   // 1. Proximity at the end of the step.
@@ -244,7 +306,8 @@ SelfCollisionResult SelfCollision::apply(const Model& model, double h, const Vec
   };
   for (const auto& [node, tri] : pairs_.point_triangle) consider(0, node, tri);
   for (const auto& [ea, eb] : pairs_.edge_edge) consider(1, ea, eb);
-  for (const Pair& pair : close) result.proximity_impulses += impulse(pair, x0, x1);
+  double pin_work = 0.0;  // times h^2 until the end
+  for (const Pair& pair : close) result.proximity_impulses += impulse(pair, x0, x1, &pin_work);
 
   // 2. CCD impulses: stop each colliding pair's normal approach at its time
   // of impact, with friction.
@@ -259,7 +322,11 @@ SelfCollisionResult SelfCollision::apply(const Model& model, double h, const Vec
       for (int k = 0; k < 4; ++k) at[k] = start[k] + hit.toi * (at[k] - start[k]);
       Pair pair;
       makePair(hit.kind, hit.a, hit.b, at, &pair);
-      result.ccd_impulses += impulse(pair, x0, x1);
+      // Stop the approach, no bounce: never beyond the start gap along n.
+      Vec3 rel0 = Vec3::Zero();
+      for (int k = 0; k < 4; ++k) rel0 += pair.w[k] * start[k];
+      pair.target = std::min(pair.target, std::max(pair.n.dot(rel0), 0.0));
+      result.ccd_impulses += impulse(pair, x0, x1, &pin_work);
     }
   }
 
@@ -280,7 +347,7 @@ SelfCollisionResult SelfCollision::apply(const Model& model, double h, const Vec
           parent_[find(nodes[k])] = find(nodes[0]);
         }
       }
-      if (!moveZones(x0, masses, x1, &result.failure, &result.zone_nodes)) {
+      if (!moveZones(x0, x1, &result.failure, &result.zone_nodes, &pin_work)) {
         result.ok = false;
         return result;
       }
@@ -295,9 +362,10 @@ SelfCollisionResult SelfCollision::apply(const Model& model, double h, const Vec
 
   for (int i = 0; i < n; ++i) {
     if (x1.segment<3>(3 * i) != x1_in_.segment<3>(3 * i)) {
-      v.segment<3>(3 * i) = (x1.segment<3>(3 * i) - x0.segment<3>(3 * i)) / h;
+      v.segment<3>(3 * i) += (x1.segment<3>(3 * i) - x1_in_.segment<3>(3 * i)) / h;
     }
   }
+  result.pin_work = pin_work / (h * h);
   measure(x1, &result);
   return result;
 }

@@ -18,6 +18,7 @@ void TickStats::add(const cloth_sim::StepStats& s) {
   rejected += s.rejected;
   contacts = s.contacts;
   contact_normal_force = s.contact_normal_force;
+  self_contacts = s.self_contacts;
   const bool step_ok = s.ok && s.finite;
   if (!step_ok && ok) {  // the first real failure outranks a recovery note
     failure = s.failure.empty() ? std::string("state became non-finite") : s.failure;
@@ -103,6 +104,7 @@ void fillClothState(const cloth_sim::Simulation& sim, cloth_sim::ClothState* msg
   std::sort(msg->pinned.begin(), msg->pinned.end());
   msg->sim_time = sim.time();
   msg->max_penetration = sim.maxPenetration();
+  msg->min_self_distance = sim.minSelfDistance();
 }
 
 void fillTickStats(const TickStats& tick, cloth_sim::ClothState* msg) {
@@ -119,6 +121,7 @@ void fillTickStats(const TickStats& tick, cloth_sim::ClothState* msg) {
   msg->failure = tick.failure;
   msg->contacts = static_cast<uint32_t>(tick.contacts);
   msg->contact_normal_force = tick.contact_normal_force;
+  msg->self_contacts = static_cast<uint32_t>(tick.self_contacts);
 }
 
 namespace {

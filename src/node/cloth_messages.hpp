@@ -29,6 +29,7 @@ struct TickStats {
   int rejected = 0;         ///< attempts rolled back by recovery
   int contacts = 0;         ///< nodes in contact after the last step
   double contact_normal_force = 0.0;  ///< after the last step, N
+  int self_contacts = 0;    ///< self-collision pairs within the thickness after the last step
   bool ok = true;           ///< every step succeeded and stayed finite
   std::string failure;      ///< first failure, else what recovery fixed
 

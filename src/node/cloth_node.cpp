@@ -581,6 +581,8 @@ void ClothNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
   stat.add("contacts", last_tick_.contacts);
   stat.addf("contact normal force (N)", "%.6g", last_tick_.contact_normal_force);
   stat.addf("max penetration (m)", "%.3g", sim_.maxPenetration());
+  stat.add("self contacts", last_tick_.self_contacts);
+  stat.addf("min self distance (m)", "%.3g", sim_.minSelfDistance());
   stat.add("tf pins lost (ticks)", w.tf_lost);
   for (int type = 0; type < cloth_sim::kNumSpringTypes; ++type) {
     const cloth_sim::SpringGroup& group = sim_.group(static_cast<cloth_sim::SpringType>(type));

@@ -66,7 +66,7 @@ VecX foldedPositions(const Model& m, double z0, double r) {
   return x;
 }
 
-/// Pairs of triangles sharing no node that intersect (exact-as-possible test).
+/// Pairs of triangles sharing no node that intersect (exact test).
 int intersections(const Model& m, const VecX& x) {
   int count = 0;
   const auto& T = m.triangles;
@@ -111,13 +111,7 @@ RunResult run(Simulation& sim, int steps) {
   return r;
 }
 
-// DISABLED, known failures (see the branch's report): (1) the start check
-// finds 13 "intersections" in the folded start, which are near-coplanar
-// neighbour triangles where trianglesIntersect's rounded orientation signs
-// err towards "intersects" (needs exact predicates); (2) at step 28 the
-// implicit_euler run fails with a 7768 J energy jump even after 8 halvings:
-// the response misbehaves where the layers land on the table (unresolved).
-TEST(SelfCollision, DISABLED_FoldedClothDroppedOnATableNeverIntersects) {
+TEST(SelfCollision, FoldedClothDroppedOnATableNeverIntersects) {
   for (Method method : {Method::ImplicitEuler, Method::Newton, Method::Bdf2}) {
     SCOPED_TRACE(toString(method));
     Scene s = clothScene(method);
@@ -174,10 +168,7 @@ TEST(SelfCollision, ClothOnAThinRodDrapesWithoutIntersecting) {
   EXPECT_LT(sim.minSelfDistance(), 0.02);
 }
 
-// DISABLED, known gap: the pin's push through the self-collision response
-// is not counted as pin work, so the energy check rejects the step even at
-// the deepest halving ("energy jump of 0.0044 J beyond the work input").
-TEST(SelfCollision, DISABLED_PinDrivenThroughAFoldedClothAt5MetersPerSecond) {
+TEST(SelfCollision, PinDrivenThroughAFoldedClothAt5MetersPerSecond) {
   // No gravity: a node of the top layer is pinned and driven straight down
   // at 5 m/s through where the bottom layer is (a fast fling).
   Scene s = clothScene();
@@ -216,9 +207,7 @@ double topLayerSlide(double friction) {
   return std::abs(sim.position(edge).x() - x_start);
 }
 
-// DISABLED, known failure: the folded start (layers 8 mm apart) trips the
-// same near-coplanar false positives of trianglesIntersect (2 pairs).
-TEST(SelfCollision, DISABLED_HighFrictionHoldsAFoldedLayer) {
+TEST(SelfCollision, HighFrictionHoldsAFoldedLayer) {
   const double slides = topLayerSlide(0.0);
   const double holds = topLayerSlide(5.0);
   EXPECT_GT(slides, 0.01);

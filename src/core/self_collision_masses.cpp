@@ -1,0 +1,77 @@
+// Which nodes the self-collision filter may move, and how: the link between
+// the filter and the colliders (self_collision.hpp, SelfCollisionMasses).
+#include <algorithm>
+#include <string>
+
+#include "cloth_sim/collider.hpp"
+#include "cloth_sim/contact.hpp"
+#include "cloth_sim/self_collision.hpp"
+
+namespace cloth_sim {
+
+void selfCollisionMasses(const std::vector<int>& pinned, const ContactSet& contacts,
+                         const CollidersOverStep& colliders, const VecX& x1, double reach,
+                         SelfCollisionMasses* out) {
+  out->fixed = pinned;
+  out->heavy.clear();
+  out->heavy_normal.clear();
+  if (colliders.empty()) return;
+  const int n = static_cast<int>(x1.size() / 3);
+  // Per node: the normal of the one surface it is near, or zero when near
+  // two (wedged: it may not move at all).
+  std::vector<int> near(n, 0);
+  std::vector<Vec3> normal(n, Vec3::Zero());
+  auto hold = [&](int i, const Vec3& nrm) {
+    if (near[i] == 0) {
+      normal[i] = nrm;
+    } else if ((normal[i] - nrm).norm() > 1e-9) {
+      normal[i].setZero();
+    }
+    ++near[i];
+  };
+  const std::vector<int> held = contacts.contactNodes();
+  const std::vector<Vec3> held_normal = contacts.contactNormals();
+  for (size_t k = 0; k < held.size(); ++k) {
+    if (held_normal[k].isZero(0.0)) near[held[k]] = 2;  // wedged already
+    else hold(held[k], held_normal[k]);
+  }
+  // Not only the nodes the contact solve holds: a node just above a surface
+  // is as easily pushed through it by an impulse.
+  for (size_t c = 0; c < colliders.colliders->size(); ++c) {
+    const Collider& collider = (*colliders.colliders)[c];
+    for (int i = 0; i < n; ++i) {
+      if (near[i] >= 2) continue;
+      const SurfacePoint sp = collider.closest(x1.segment<3>(3 * i), colliders.end[c]);
+      if (sp.distance < colliders.thickness + reach) hold(i, sp.normal);
+    }
+  }
+  for (int i = 0; i < n; ++i) {
+    if (near[i] == 0) continue;
+    out->heavy.push_back(i);
+    out->heavy_normal.push_back(near[i] >= 2 ? Vec3::Zero() : normal[i]);
+  }
+}
+
+int pushedIntoCollider(const CollidersOverStep& colliders, const VecX& before,
+                       const VecX& after, std::string* which) {
+  if (colliders.empty()) return -1;
+  const int n = static_cast<int>(after.size() / 3);
+  for (int i = 0; i < n; ++i) {
+    if (after.segment<3>(3 * i) == before.segment<3>(3 * i)) continue;
+    for (size_t c = 0; c < colliders.colliders->size(); ++c) {
+      const Collider& collider = (*colliders.colliders)[c];
+      const double d1 = collider.closest(after.segment<3>(3 * i), colliders.end[c]).distance;
+      if (d1 >= colliders.thickness) continue;
+      const double d0 = collider.closest(before.segment<3>(3 * i), colliders.end[c]).distance;
+      // Deeper than the solve left it (round-off aside).
+      if (d1 < d0 - 1e-9 * (1.0 + colliders.thickness)) {
+        *which = "self-collision pushed node " + std::to_string(i) + " into collider '" +
+                 collider.name() + "'";
+        return i;
+      }
+    }
+  }
+  return -1;
+}
+
+}  // namespace cloth_sim
