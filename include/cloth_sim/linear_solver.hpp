@@ -197,26 +197,39 @@ constexpr double kAutoJacobiLimit = 5.0e4;
 constexpr int kAutoJacobiIterations = 400;
 constexpr int kAutoCholeskyNodes = 4096;
 
-/// `auto` across steps: block Jacobi where it pays, and once a block-Jacobi
-/// solve runs past kAutoJacobiIterations, the stronger preconditioner for
-/// the rest of it and for every later step at least half as stiff (kappa);
-/// block Jacobi is tried again only on a cloth made much softer (or a
-/// smaller step). So a scene never pays for a wrong guess twice, and no
-/// step is rejected for it.
+/// `auto` across steps: block Jacobi where it pays. A block-Jacobi solve
+/// that runs past kAutoJacobiIterations goes on with the stronger
+/// preconditioner (no step is rejected for the guess). After
+/// kAutoEscalations attempts in a row did so, the stronger one is used from
+/// the start for every step at least half that stiff (kappa), and block
+/// Jacobi is tried again after kAutoReprobeAttempts attempts, or on a cloth
+/// made much softer. One long solve alone does not move the limit: the
+/// flooded demo node (pins grasped and released 200 times a second) has
+/// such solves now and then, and a limit lowered by them put it on the
+/// factor and its marker rate fell to 53 of 60 Hz.
 class AutoPreconditioner {
  public:
-  /// This step's preconditioner (`requested` as it is unless Auto).
+  /// This attempt's preconditioner (`requested` as it is unless Auto).
   Preconditioner choose(Preconditioner requested, const Model& model, double h);
-  /// A block-Jacobi solve of this step did not converge in time: returns the
-  /// stronger preconditioner and remembers the step's kappa.
+  /// A block-Jacobi solve of this attempt did not converge in time: returns
+  /// the stronger preconditioner.
   Preconditioner escalate(const Model& model);
   /// Forgets what was learnt (a new scene).
-  void reset() { jacobi_limit_ = kAutoJacobiLimit; }
+  void reset() {
+    jacobi_limit_ = kAutoJacobiLimit;
+    streak_ = 0;
+  }
   double jacobiLimit() const { return jacobi_limit_; }
+  static constexpr int kAutoEscalations = 3;
+  static constexpr int kAutoReprobeAttempts = 200;
 
  private:
   double jacobi_limit_ = kAutoJacobiLimit;
-  double kappa_ = 0.0;  ///< of the step being solved
+  double kappa_ = 0.0;      ///< of the attempt being solved
+  bool jacobi_ = false;     ///< the attempt being solved started with block Jacobi
+  bool escalated_ = false;  ///< ... and escalated
+  int streak_ = 0;          ///< attempts in a row that escalated
+  int since_lowered_ = 0;   ///< attempts since the limit was lowered
 };
 
 /// Preconditioned conjugate gradient on S A S y = S b, S the constraint

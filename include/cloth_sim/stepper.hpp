@@ -52,6 +52,8 @@ class Stepper {
   /// it for implicit_euler's refined steps, which are accepted on the
   /// energy, not on a Newton tolerance.
   void setDecrementStop(double joules) { decrement_stop_ = joules; }
+  /// Caps Newton's iterations below newton_max_iterations (0: no cap).
+  void setIterationCap(int cap) { iteration_cap_ = cap; }
   /// Newton also stops at the first iterate (x1, v1) that `accept` takes
   /// (the recovery's energy check for a refined step) once its decrement is
   /// at most `decrement` (J); empty: never.
@@ -111,6 +113,7 @@ class Stepper {
   double decrement_stop_ = 0.0;    ///< setDecrementStop
   std::function<bool(const VecX&, const VecX&)> energy_stop_;  ///< setEnergyStop
   double energy_stop_decrement_ = 0.0;
+  int iteration_cap_ = 0;  ///< setIterationCap
 };
 
 }  // namespace cloth_sim

@@ -260,12 +260,23 @@ Preconditioner choosePreconditioner(Preconditioner requested, const Model& model
 Preconditioner AutoPreconditioner::choose(Preconditioner requested, const Model& model,
                                           double h) {
   if (requested != Preconditioner::Auto) return requested;
+  if (jacobi_) streak_ = escalated_ ? streak_ + 1 : 0;  // the last attempt's verdict
+  if (streak_ >= kAutoEscalations) {
+    jacobi_limit_ = std::min(jacobi_limit_, 0.5 * kappa_);
+    streak_ = 0;
+    since_lowered_ = 0;
+  } else if (jacobi_limit_ < kAutoJacobiLimit && ++since_lowered_ > kAutoReprobeAttempts) {
+    jacobi_limit_ = kAutoJacobiLimit;  // try block Jacobi again
+  }
   kappa_ = autoStiffness(model, h);
-  return choosePreconditioner(requested, model, h, jacobi_limit_);
+  escalated_ = false;
+  const Preconditioner chosen = choosePreconditioner(requested, model, h, jacobi_limit_);
+  jacobi_ = chosen == Preconditioner::BlockJacobi;
+  return chosen;
 }
 
 Preconditioner AutoPreconditioner::escalate(const Model& model) {
-  jacobi_limit_ = std::min(jacobi_limit_, 0.5 * kappa_);
+  escalated_ = true;
   return strongerPreconditioner(model);
 }
 

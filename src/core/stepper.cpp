@@ -124,7 +124,10 @@ StepStats Stepper::runMethod(const Model& model, double h, const History& histor
       stats = implicitEuler(model, h, x, v);
       break;
     case Method::Newton:
-      stats = newtonSolve(model, h, 1.0, x, v, settings_.newton_max_iterations, x, v);
+      stats = newtonSolve(model, h, 1.0, x, v,
+                          iteration_cap_ > 0 ? std::min(iteration_cap_, settings_.newton_max_iterations)
+                                             : settings_.newton_max_iterations,
+                          x, v);
       break;
     case Method::Bdf2:
       stats = bdf2(model, h, history, x, v);

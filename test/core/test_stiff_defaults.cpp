@@ -40,13 +40,26 @@ TEST(AutoPreconditioner, RemembersWhereBlockJacobiDidNotPay) {
       parseScene("cloth: {rows: 24, cols: 24}\n", {"springs.stretch.stiffness=5000"}));
   const double h = 1.0 / 120.0, kappa = autoStiffness(demo, h);
   AutoPreconditioner a;
-  ASSERT_EQ(a.choose(Preconditioner::Auto, demo, h), Preconditioner::BlockJacobi);
-  EXPECT_EQ(a.escalate(demo), Preconditioner::Cholesky);
-  EXPECT_DOUBLE_EQ(a.jacobiLimit(), 0.5 * kappa);
-  // The same cloth and step: straight to the factor.
+  // One long solve now and then does not move the limit ...
+  for (int k = 0; k < 10; ++k) {
+    ASSERT_EQ(a.choose(Preconditioner::Auto, demo, h), Preconditioner::BlockJacobi);
+    if (k % 2 == 0) EXPECT_EQ(a.escalate(demo), Preconditioner::Cholesky);
+  }
+  // ... attempts that all need the factor do.
+  for (int k = 0; k < AutoPreconditioner::kAutoEscalations; ++k) {
+    ASSERT_EQ(a.choose(Preconditioner::Auto, demo, h), Preconditioner::BlockJacobi);
+    a.escalate(demo);
+  }
   EXPECT_EQ(a.choose(Preconditioner::Auto, demo, h), Preconditioner::Cholesky);
+  EXPECT_DOUBLE_EQ(a.jacobiLimit(), 0.5 * kappa);
   // A step a quarter as long (kappa about 1/4 to 1/16): block Jacobi again.
   EXPECT_EQ(a.choose(Preconditioner::Auto, demo, h / 4), Preconditioner::BlockJacobi);
+  // Block Jacobi is tried again after a while.
+  Preconditioner last = Preconditioner::Cholesky;
+  for (int k = 0; k <= AutoPreconditioner::kAutoReprobeAttempts + 1; ++k) {
+    last = a.choose(Preconditioner::Auto, demo, h);
+  }
+  EXPECT_EQ(last, Preconditioner::BlockJacobi);
   a.reset();
   EXPECT_EQ(a.choose(Preconditioner::Auto, demo, h), Preconditioner::BlockJacobi);
 }
@@ -55,8 +68,8 @@ TEST(AutoPreconditioner, RemembersWhereBlockJacobiDidNotPay) {
 // defaults): kappa 3750 looks like block Jacobi's, but its solves need
 // thousands of iterations there. With `auto` choosing by kappa alone, 42 of
 // 60 steps were rejected in the first second (block Jacobi ran out of
-// iterations); now the first long solve goes on with the factor, and no
-// step is rejected.
+// iterations); now each long solve goes on with the factor, the factor is
+// used from the start after three of them, and no step is rejected.
 TEST(AutoPreconditioner, FallingClothNeedsNoRejectedStep) {
   Simulation sim(parseScene("cloth: {rows: 20, cols: 20}\npins: [0, 19]\n",
                             {"springs.stretch.stiffness=1e4", "solver.dt=0.016666666666666666"}));
