@@ -51,4 +51,10 @@ Model buildModel(const Scene& scene);
 /// Applies the scene's `initial` edits (stretch, scatter, collapse) to positions.
 VecX initialPositions(const Scene& scene, const VecX& grid);
 
+/// The grid node halfway between a spring's ends when they are two grid
+/// lines apart in a straight or diagonal line (a bend spring) on a grid of
+/// n nodes with `cols` columns; -1 otherwise or without a grid (cols <= 0).
+/// The multigrid and the Cholesky factor reroute such springs through it.
+int middleNode(const Spring& s, int n, int cols);
+
 }  // namespace cloth_sim

@@ -149,8 +149,11 @@ class Simulation {
   /// An implicit_euler step solved on by Newton towards backward Euler and
   /// accepted on the energy check (stepWithRecovery): `refined` when ok.
   StepStats refine(double h, bool can_split);
-  /// Whether a pin starts the next step away from its node (a jump).
+  /// Whether a pin starts the next step away from its node (a jump); a
+  /// failed attempt leaves it as it was (the state is rolled back).
   bool pinsJump() const;
+  /// Whether a pin drifts at a velocity during the next step.
+  bool pinsDrift() const;
   /// Work the pins did over a step from (x_save_, v_save_) to (x1, v1) (J).
   double pinWork(const VecX& x1, const VecX& v1, double h);
   StepStats attempt(double h, bool reject_linear, bool reject_newton,
@@ -188,7 +191,6 @@ class Simulation {
   double pending_work_ = 0.0;  ///< work by events since the last step
   StepStats last_stats_;
   bool energy_rejected_ = false;  ///< the last attempt failed on the energy check alone
-  bool pins_jumped_ = false;  ///< a pin starts the last attempt away from its node (a jump)
   bool refining_ = false;     ///< the attempt refines a linearized step (stepWithRecovery)
   bool refine_next_ = false;  ///< the last refined step took > 1 Newton iteration
   Stepper stepper_;

@@ -73,22 +73,10 @@ void SystemMatrix::multiplyAll(const VecX& x_in, VecX& y_out) const {
   }
 }
 
-namespace {
-
-/// The node between a bend spring's ends on a grid with `cols` columns, or -1
-/// (not two grid lines apart in a straight or diagonal line, or no grid).
-int viaNode(const Spring& s, int n, int cols) {
-  if (cols <= 0 || n % cols != 0) return -1;
-  const int dr = s.j / cols - s.i / cols, dc = s.j % cols - s.i % cols;
-  const bool two_lines = std::max(std::abs(dr), std::abs(dc)) == 2 && dr % 2 == 0 && dc % 2 == 0;
-  return two_lines ? (s.i / cols + dr / 2) * cols + s.i % cols + dc / 2 : -1;
-}
-
-}  // namespace
 
 void CholeskyFactor::buildPattern(int n, const std::vector<Spring>& springs, int grid_cols) {
   via_.assign(springs.size(), -1);
-  for (size_t k = 0; k < springs.size(); ++k) via_[k] = viaNode(springs[k], n, grid_cols);
+  for (size_t k = 0; k < springs.size(); ++k) via_[k] = middleNode(springs[k], n, grid_cols);
   // Lower triangle only: node blocks (i, i) and coupling blocks (max, min).
   std::vector<Eigen::Triplet<double>> entries;
   entries.reserve(6 * n + 9 * 2 * springs.size());
@@ -270,7 +258,8 @@ Preconditioner AutoPreconditioner::choose(Preconditioner requested, const Model&
   }
   kappa_ = autoStiffness(model, h);
   escalated_ = false;
-  const Preconditioner chosen = choosePreconditioner(requested, model, h, jacobi_limit_);
+  const Preconditioner chosen =
+      kappa_ <= jacobi_limit_ ? Preconditioner::BlockJacobi : strongerPreconditioner(model);
   jacobi_ = chosen == Preconditioner::BlockJacobi;
   return chosen;
 }

@@ -1,5 +1,7 @@
 #include "cloth_sim/model.hpp"
 
+#include <algorithm>
+#include <cstdlib>
 #include <random>
 
 namespace cloth_sim {
@@ -115,6 +117,13 @@ VecX initialPositions(const Scene& scene, const VecX& grid) {
     for (int k = 0; k < x.size(); ++k) x[k] += offset(rng);
   }
   return x;
+}
+
+int middleNode(const Spring& s, int n, int cols) {
+  if (cols <= 0 || n % cols != 0) return -1;
+  const int dr = s.j / cols - s.i / cols, dc = s.j % cols - s.i % cols;
+  const bool two_lines = std::max(std::abs(dr), std::abs(dc)) == 2 && dr % 2 == 0 && dc % 2 == 0;
+  return two_lines ? (s.i / cols + dr / 2) * cols + s.i % cols + dc / 2 : -1;
 }
 
 }  // namespace cloth_sim

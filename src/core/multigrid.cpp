@@ -100,11 +100,7 @@ void MultigridPreconditioner::buildHierarchy(const std::vector<Spring>& springs,
                            coarseLines(rows).size() * coarseLines(cols).size() ==
                                static_cast<size_t>(finest.num_nodes);
     auto via = [&](const Spring& s) {
-      if (one_level) return -1;
-      const int dr = s.j / cols - s.i / cols, dc = s.j % cols - s.i % cols;
-      const bool two_lines = std::max(std::abs(dr), std::abs(dc)) == 2 &&
-                             dr % 2 == 0 && dc % 2 == 0;
-      return two_lines ? (s.i / cols + dr / 2) * cols + s.i % cols + dc / 2 : -1;
+      return one_level ? -1 : middleNode(s, finest.num_nodes, cols);
     };
     auto pair_of = [&](int a, int b) { return free[a] && free[b] && a != b; };
     std::vector<std::vector<int>> lower(finest.num_nodes);

@@ -190,14 +190,12 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
   pin_ends_.nodes.clear();
   pin_ends_.targets.clear();
   bool pins_move = false;
-  pins_jumped_ = false;
   for (const auto& [node, pin] : pins_) {
     const double drift = std::clamp(pin.velocity_until - t_, 0.0, h);
     const Vec3 end = pin.position + drift * pin.velocity;
     pin_ends_.nodes.push_back(node);
     pin_ends_.targets.push_back(end);
     pins_move = pins_move || end != x_save_.segment<3>(3 * node);
-    pins_jumped_ = pins_jumped_ || pin.position != x_save_.segment<3>(3 * node);
   }
   History history;
   if (has_prev_) history = History{&x_prev_, &v_prev_, h_prev_};

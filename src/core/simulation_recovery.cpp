@@ -58,14 +58,19 @@ bool Simulation::pinsJump() const {
   return false;
 }
 
+bool Simulation::pinsDrift() const {
+  for (const auto& [node, pin] : pins_) {
+    if (pin.velocity_until > t_) return true;
+  }
+  return false;
+}
+
 StepStats Simulation::refine(double h, bool can_split) {
   stepper_.setDecrementStop(kRefineDecrement * energyScale());
   // With pins drifting, Newton gets kMovingPinIterations: a gripper
   // dragging the demo fast took it 20 a step and the flooded node fell to
   // 53 of 60 Hz; a step not right by then is split, as before.
-  bool drifting = false;
-  for (const auto& [node, pin] : pins_) drifting = drifting || pin.velocity_until > t_;
-  stepper_.setIterationCap(drifting ? kMovingPinIterations : 0);
+  stepper_.setIterationCap(pinsDrift() ? kMovingPinIterations : 0);
   refining_ = true;
   StepStats s = attempt(h, can_split, false, Method::Newton);
   refining_ = false;
@@ -102,7 +107,7 @@ StepStats Simulation::stepWithRecovery(double h, int depth) {
   }
   StepStats first = attempt(h, can_split, reject_newton);
   refine_next_ = false;
-  if (!first.ok && energy_rejected_ && !pins_jumped_ && implicit_euler) {
+  if (!first.ok && energy_rejected_ && !pinsJump() && implicit_euler) {
     // implicit_euler's step is the first Newton iteration of backward Euler.
     // Where that linearization would create energy (a stiff spring turned or
     // stretched beyond its tangent: a calm cloth of stretch 1e9 at dt 1/30
