@@ -181,9 +181,7 @@ double autoStiffness(const Model& model, double h);
 /// - cholesky up to kAutoCholeskyNodes nodes when stiffer: a factor of the
 ///   whole matrix solves at any stiffness in a few iterations;
 /// - multigrid beyond (the factorization's fill grows faster than the grid).
-/// Any other request is returned as it is.
-Preconditioner choosePreconditioner(Preconditioner requested, const Model& model, double h,
-                                    double jacobi_limit);
+/// AutoPreconditioner (below) makes the choice; any other request is kept.
 /// A stiffer one than block Jacobi for this model: cholesky up to
 /// kAutoCholeskyNodes nodes, multigrid beyond.
 Preconditioner strongerPreconditioner(const Model& model);

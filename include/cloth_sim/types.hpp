@@ -33,7 +33,7 @@ bool parseMethod(const std::string& name, Method* method);
 /// pattern analysed once), so CG converges in a step or two at any stiffness;
 /// multigrid: one symmetric geometric V-cycle on the cloth grid, so the
 /// iteration count barely grows with the resolution.
-/// Auto: chosen per step by choosePreconditioner (linear_solver.hpp).
+/// Auto: chosen per step by AutoPreconditioner (linear_solver.hpp).
 enum class Preconditioner { None, BlockJacobi, Cholesky, Multigrid, Auto };
 
 /// Result of a runtime request: ok, or a message naming the bad field.

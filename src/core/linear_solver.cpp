@@ -238,13 +238,6 @@ Preconditioner strongerPreconditioner(const Model& model) {
                                                 : Preconditioner::Multigrid;
 }
 
-Preconditioner choosePreconditioner(Preconditioner requested, const Model& model, double h,
-                                    double jacobi_limit) {
-  if (requested != Preconditioner::Auto) return requested;
-  return autoStiffness(model, h) <= jacobi_limit ? Preconditioner::BlockJacobi
-                                                 : strongerPreconditioner(model);
-}
-
 Preconditioner AutoPreconditioner::choose(Preconditioner requested, const Model& model,
                                           double h) {
   if (requested != Preconditioner::Auto) return requested;
