@@ -97,14 +97,17 @@ struct Setting {
   std::string preconditioner = "block_jacobi";
   int newton_iterations = 1;     ///< newton/bdf2 cap; Bullet's Newton iterations
   double newton_tolerance = 1e-8;
+  /// > 0: error-controlled stepping (solver.error_tolerance), dt its first step
+  double error_tolerance = 0.0;
   bool isBullet() const { return method == "bullet"; }
+  bool adaptive() const { return error_tolerance > 0.0; }
 };
 
 std::vector<Setting> readSettings(const std::string& path) {
   std::ifstream in(path);
   if (!in) throw UsageError{path + ": cannot read file"};
-  const std::vector<std::string> expected = {"method", "dt", "tolerance", "preconditioner",
-                                             "newton_iterations", "newton_tolerance"};
+  std::vector<std::string> expected = {"method", "dt", "tolerance", "preconditioner",
+                                       "newton_iterations", "newton_tolerance"};
   std::string line;
   std::vector<Setting> settings;
   int line_number = 0;
@@ -115,14 +118,18 @@ std::vector<Setting> readSettings(const std::string& path) {
     const std::vector<std::string> f = splitCsvLine(line);
     const std::string at = path + ":" + std::to_string(line_number);
     if (header) {
+      // error_tolerance: an optional last column (empty or 0: fixed steps).
+      if (f.size() == expected.size() + 1 && f.back() == "error_tolerance") {
+        expected.push_back("error_tolerance");
+      }
       if (f != expected) {
         throw UsageError{at + ": header must be method,dt,tolerance,preconditioner,"
-                              "newton_iterations,newton_tolerance"};
+                              "newton_iterations,newton_tolerance[,error_tolerance]"};
       }
       header = false;
       continue;
     }
-    if (f.size() != expected.size()) {
+    if (f.size() != expected.size() && !(f.size() == 6 && expected.size() == 7)) {
       throw UsageError{at + ": expected " + std::to_string(expected.size()) + " fields, got " +
                        std::to_string(f.size())};
     }
@@ -142,6 +149,12 @@ std::vector<Setting> readSettings(const std::string& path) {
     s.preconditioner = f[3];
     s.newton_iterations = static_cast<int>(parseCount(at + ": newton_iterations", f[4], 1));
     s.newton_tolerance = parseNumber(at + ": newton_tolerance", f[5]);
+    if (f.size() > 6 && !f[6].empty()) {
+      s.error_tolerance = parseNumber(at + ": error_tolerance", f[6]);
+      if (s.isBullet() && s.adaptive()) {
+        throw UsageError{at + ": error_tolerance: the Bullet peer steps at a fixed dt"};
+      }
+    }
     if (!(s.dt > 0)) throw UsageError{at + ": dt: must be > 0"};
     settings.push_back(s);
   }
@@ -163,7 +176,7 @@ std::string shortestNumber(double v) {
 /// strings go into the CSV so a row can be re-run with cloth_sim_run --set.
 std::vector<std::string> solverOverrides(const Setting& s) {
   auto num = [](double v) { return shortestNumber(v); };
-  return {"solver.method=" + s.method,
+  std::vector<std::string> overrides = {"solver.method=" + s.method,
           "solver.dt=" + num(s.dt),
           "solver.tolerance=" + num(s.tolerance),
           "solver.preconditioner=" + s.preconditioner,
@@ -171,6 +184,8 @@ std::vector<std::string> solverOverrides(const Setting& s) {
           "solver.newton_tolerance=" + num(s.newton_tolerance),
           // A setting is exactly its dt: a failed step fails it, no halving.
           "solver.recovery=false"};
+  if (s.adaptive()) overrides.push_back("solver.error_tolerance=" + num(s.error_tolerance));
+  return overrides;
 }
 
 // ------------------------------------------------------------ measures ----
@@ -299,6 +314,10 @@ Scene sceneFor(const Scene& base, const Setting& s) {
   scene.solver.tolerance = s.tolerance;
   scene.solver.newton_max_iterations = s.newton_iterations;
   scene.solver.newton_tolerance = s.newton_tolerance;
+  // A fixed setting is fixed even where the scene (or --set) asks for error
+  // control; the bounds dt_min, dt_max stay the scene's.
+  scene.solver.error_tolerance =
+      s.adaptive() ? std::optional<double>(s.error_tolerance) : std::nullopt;
   if (s.preconditioner == "none") {
     scene.solver.preconditioner = Preconditioner::None;
   } else if (s.preconditioner == "block_jacobi") {
@@ -362,7 +381,10 @@ VecX initialVelocities(const Scene& scene) {
 
 Run runCloth(const Scene& base, const Setting& setting, const RunPlan& plan) {
   const Scene scene = sceneFor(base, setting);
-  const long steps = stepCount(plan.duration, setting.dt);
+  // Error-controlled: as many steps as the control takes, the last one
+  // landing on the duration.
+  const long steps = setting.adaptive() ? std::numeric_limits<long>::max()
+                                        : stepCount(plan.duration, setting.dt);
   Simulation sim(scene);
   const StaticColliders measure(base);
   Run run;
@@ -373,7 +395,9 @@ Run runCloth(const Scene& base, const Setting& setting, const RunPlan& plan) {
 
   const auto wall_start = WallClock::now();
   const double cpu_start = threadCpuSeconds();
-  for (long n = 0; n < steps; ++n) {
+  const double end_slack = 1e-9 * plan.duration;
+  for (long n = 0; n < steps && sim.time() < plan.duration - end_slack; ++n) {
+    const double t0 = sim.time();
     if (plan.record) {
       x_before.swap(x0);
       v_before.swap(v0);
@@ -392,7 +416,7 @@ Run runCloth(const Scene& base, const Setting& setting, const RunPlan& plan) {
         ++next_snapshot;
       }
     }
-    const StepStats s = sim.step();
+    const StepStats s = setting.adaptive() ? sim.stepToward(plan.duration) : sim.step();
     if (!s.ok) {
       run.ok = false;
       run.failure = "step " + std::to_string(n) + ": " + s.failure;
@@ -410,8 +434,12 @@ Run runCloth(const Scene& base, const Setting& setting, const RunPlan& plan) {
     ++run.steps;
     if (plan.record) {
       measure.measure(sim.positions(), run);
-      sampler.afterStep(n * setting.dt, x0, v0, (n + 1) * setting.dt, sim.positions(),
-                        sim.velocities());
+      if (setting.adaptive()) {
+        sampler.afterStep(t0, x0, v0, sim.time(), sim.positions(), sim.velocities());
+      } else {
+        sampler.afterStep(n * setting.dt, x0, v0, (n + 1) * setting.dt, sim.positions(),
+                          sim.velocities());
+      }
     }
   }
   run.cpu_s = threadCpuSeconds() - cpu_start;
@@ -727,7 +755,8 @@ const char* const kCsvHeader =
     "cpu_s_per_sim_s_max,cpu_assembly_s_per_sim_s,cpu_solve_s_per_sim_s,cpu_other_s_per_sim_s,"
     "cpu_ms_per_step,wall_s_per_sim_s,cg_iterations_per_step,newton_iterations_per_step,"
     "max_residual,max_newton_residual,error,error_final,solver_error,max_strain,energy_drift,ref_dt,ref_diff,"
-    "deterministic,overrides,max_penetration,max_depth,contacts_per_step,contact_passes_per_step";
+    "deterministic,overrides,max_penetration,max_depth,contacts_per_step,contact_passes_per_step,"
+    "error_tolerance";
 
 std::string csvNumber(double v) {
   if (!std::isfinite(v)) return "";
@@ -760,7 +789,7 @@ std::string formatRow(const Options& o, const Model& model, const Row& r, double
   const Setting& s = r.setting;
   const Run& run = r.recorded;
   const double cpu = median(r.cpu);
-  const double steps_per_sim_s = 1.0 / s.dt;
+  const double steps_per_sim_s = s.adaptive() ? run.steps / o.duration : 1.0 / s.dt;
   std::vector<std::string> overrides = scene_overrides;
   if (s.isBullet()) {  // bullet_check run's flags
     overrides.push_back("--dt " + shortestNumber(s.dt) + " --newton " +
@@ -794,7 +823,8 @@ std::string formatRow(const Options& o, const Model& model, const Row& r, double
       << ',' << csvText(joined) << ',' << csvNumber(run.max_penetration) << ','
       << csvNumber(run.max_depth) << ','
       << csvNumber(s.isBullet() || !run.contact_passes_sum ? kNaN : run.contacts_sum / steps) << ','
-      << csvNumber(s.isBullet() || !run.contact_passes_sum ? kNaN : run.contact_passes_sum / steps);
+      << csvNumber(s.isBullet() || !run.contact_passes_sum ? kNaN : run.contact_passes_sum / steps)
+      << ',' << csvNumber(s.adaptive() ? s.error_tolerance : kNaN);
   return out.str();
 }
 
@@ -819,8 +849,10 @@ int benchMain(const Options& o) {
   const std::vector<Setting> settings = readSettings(o.settings_path);
   // Reject a bad setting before hours of running, naming its row.
   for (size_t k = 0; k < settings.size(); ++k) {
-    stepCount(o.duration, settings[k].dt,
-              o.settings_path + ": setting " + std::to_string(k + 1) + ": dt");
+    if (!settings[k].adaptive()) {
+      stepCount(o.duration, settings[k].dt,
+                o.settings_path + ": setting " + std::to_string(k + 1) + ": dt");
+    }
     if (settings[k].isBullet()) continue;
     try {
       sceneFor(base, settings[k]);
@@ -912,9 +944,10 @@ int benchMain(const Options& o) {
     Row r;
     r.setting = s;
     RunPlan plan = record;
-    const long steps = stepCount(o.duration, s.dt);
-    // Snapshots for the one-step solver error: evenly spread, not the first step.
-    for (int k = 1; k <= o.solver_error_states; ++k) {
+    // Snapshots for the one-step solver error: evenly spread, not the first
+    // step. Not for error-controlled runs: their steps differ in size.
+    const long steps = s.adaptive() ? 0 : stepCount(o.duration, s.dt);
+    for (int k = 1; k <= o.solver_error_states && !s.adaptive(); ++k) {
       plan.snapshot_steps.push_back(std::max<long>(1, steps * k / (o.solver_error_states + 1)));
     }
     // The untimed run doubles as warm-up; it records the trajectory.

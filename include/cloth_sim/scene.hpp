@@ -96,6 +96,15 @@ struct Scene {
     int newton_max_iterations = 20;
     int max_halvings = 8;          ///< recovery: a rejected step splits at most this deep
     bool recovery = true;
+    /// Error-controlled stepping (step_size_control.hpp): when set, each
+    /// step's local position error estimate, RMS over the free nodes and
+    /// relative to the cloth's diagonal, is held within error_tolerance * h / 1 s
+    /// (error per unit step: the global error after t seconds is about
+    /// error_tolerance * t where errors add up, less where the cloth damps
+    /// them). dt is then the first step, dt_min and dt_max the bounds.
+    std::optional<double> error_tolerance;
+    double dt_min = 1e-5;  ///< s; only with error_tolerance
+    double dt_max = 0.05;  ///< s; only with error_tolerance
   } solver;
 
   /// Contact defaults for every collider.

@@ -13,6 +13,7 @@
 #include "cloth_sim/model.hpp"
 #include "cloth_sim/scene.hpp"
 #include "cloth_sim/self_collision.hpp"
+#include "cloth_sim/step_size_control.hpp"
 #include "cloth_sim/step_stats.hpp"
 #include "cloth_sim/stepper.hpp"
 #include "cloth_sim/types.hpp"
@@ -58,10 +59,26 @@ class Simulation {
   double dt() const { return scene_.solver.dt; }
   long stepCount() const { return step_count_; }
 
-  /// Applies the scene events that are due, then advances by solver.dt.
+  /// Applies the scene events that are due, then advances by solver.dt, or
+  /// with solver.error_tolerance by the step the error control picks (never
+  /// past the next event: events land on their times).
   StepStats step();
   /// Same, advancing by h (the node divides its timer tick evenly). h > 0.
+  /// No error control: h is taken as given (recovery may still split it).
   StepStats step(double h);
+  /// Advances to time t_end (> time()) exactly: with solver.error_tolerance
+  /// by error-controlled steps, else by equal steps no longer than solver.dt.
+  /// Stops at the first failed step (its stats say why). Defined in
+  /// simulation_adaptive.cpp.
+  StepStats advanceTo(double t_end);
+  /// One step that ends no later than t_limit: error-controlled (no further
+  /// than the next event either; a step whose error estimate is too large is
+  /// taken back and redone smaller), else of solver.dt, cut short at t_limit.
+  StepStats stepToward(double t_limit);
+  /// Whether the scene asks for error-controlled stepping.
+  bool adaptive() const { return scene_.solver.error_tolerance.has_value(); }
+  /// The size error control proposes for the next step (solver.dt without it).
+  double nextStepSize() const { return adaptive() ? step_control_.proposal() : scene_.solver.dt; }
 
   // --- runtime requests (the node's services map onto these) ---
   /// Pins nodes. Empty `targets` pins them where they are; else one per index.
@@ -142,6 +159,12 @@ class Simulation {
 
  private:
   void applyDueEvents();
+  // simulation_adaptive.cpp
+  void saveCheckpoint();
+  void restoreCheckpoint();
+  void resetStepControl();
+  /// Stats of several steps with the state's figures at their end.
+  StepStats finish(StepStats total);
   Status applyEvent(const SceneEvent& event);
   /// One step of h, no recovery; on failure the state is left as it was.
   /// reject_linear / reject_newton: a linear solve / Newton iteration short of
@@ -194,6 +217,8 @@ class Simulation {
   bool refining_ = false;     ///< the attempt refines a linearized step (stepWithRecovery)
   bool refine_next_ = false;  ///< the last refined step took > 1 Newton iteration
   Stepper stepper_;
+  StepSizeControl step_control_;  ///< with solver.error_tolerance
+  std::vector<char> free_nodes_;  ///< reused by the error estimate
   PinnedEnds pin_ends_;  ///< reused per step
   EnergyParts measures_; ///< of the current state (energy check, stats)
   VecX x_save_, v_save_, force_;

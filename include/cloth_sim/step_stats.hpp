@@ -23,6 +23,15 @@ struct StepStats {
   int substeps = 1;           ///< steps actually taken (> 1 after recovery)
   int halvings = 0;           ///< deepest step halving used by recovery
   int rejected = 0;           ///< attempts rolled back
+  /// Sizes of the steps taken (s): h_min the smallest sub-step of recovery
+  /// or of error control, h_max the largest step
+  double h_min = 0.0, h_max = 0.0;
+  /// Error-controlled stepping: steps redone smaller because their error
+  /// estimate exceeded solver.error_tolerance (not counted in `rejected`)
+  int error_rejected = 0;
+  /// Error-controlled stepping: the largest local error estimate accepted,
+  /// relative to the cloth's diagonal and divided by the step size (1/s)
+  double error_per_time = 0.0;
   /// newton/bdf2 sub-steps whose Newton iteration did not converge even at the
   /// deepest halving, taken instead as one linearized backward-Euler step
   /// (implicit_euler's step, its linear solve to tolerance)

@@ -24,7 +24,9 @@ struct PinnedEnds {
 struct History {
   const VecX* x_prev = nullptr;
   const VecX* v_prev = nullptr;
-  double h_prev = 0.0;  ///< bdf2 runs only when h_prev == h; else its start step
+  /// bdf2 runs only when h_prev == h (else its start step), or at any ratio
+  /// under error-controlled stepping (solver.error_tolerance)
+  double h_prev = 0.0;
 };
 
 class Stepper {

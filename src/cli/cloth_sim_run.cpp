@@ -36,7 +36,8 @@ const char* const kHelp =
     "\n"
     "Runs a cloth_sim scene headless and writes its results.\n"
     "\n"
-    "  --duration S       simulate S seconds: ceil(S / solver.dt) steps (default 1 s)\n"
+    "  --duration S       simulate S seconds: ceil(S / solver.dt) steps (default 1 s);\n"
+    "                     with solver.error_tolerance the steps its control picks\n"
     "  --steps N          simulate exactly N steps\n"
     "  --set key=value    override a scene field, e.g. --set solver.dt=0.001 (repeatable)\n"
     "  --out FILE         final state, one line per node: x y z vx vy vz\n"
@@ -203,6 +204,8 @@ struct RunStats {
   bool finite = true;
   long substeps = 0;
   long rejected_steps = 0;
+  long error_rejected_steps = 0;  ///< error control: steps redone smaller
+  double h_min = 0.0, h_max = 0.0;  ///< step sizes taken, s
   long refined_steps = 0;        ///< implicit_euler steps solved on by newton
   long order_reduced_steps = 0;  ///< bdf2 steps retried as backward Euler
   int max_halvings = 0;
@@ -222,6 +225,9 @@ struct RunStats {
     max_strain = std::max(max_strain, s.max_strain);
     substeps += s.substeps;
     rejected_steps += s.rejected;
+    error_rejected_steps += s.error_rejected;
+    if (s.h_min > 0.0) h_min = h_min > 0.0 ? std::min(h_min, s.h_min) : s.h_min;
+    h_max = std::max(h_max, s.h_max);
     refined_steps += s.refined;
     order_reduced_steps += s.order_reduced;
     max_halvings = std::max(max_halvings, s.halvings);
@@ -255,6 +261,9 @@ bool writeStats(const std::string& path, const RunStats& r, const cloth_sim::Sim
   std::fprintf(f, "  \"finite\": %s,\n", r.finite ? "true" : "false");
   std::fprintf(f, "  \"substeps\": %ld,\n", r.substeps);
   std::fprintf(f, "  \"rejected_steps\": %ld,\n", r.rejected_steps);
+  std::fprintf(f, "  \"error_rejected_steps\": %ld,\n", r.error_rejected_steps);
+  std::fprintf(f, "  \"dt_smallest\": %s,\n", jsonNumber(r.h_min).c_str());
+  std::fprintf(f, "  \"dt_largest\": %s,\n", jsonNumber(r.h_max).c_str());
   std::fprintf(f, "  \"refined_steps\": %ld,\n", r.refined_steps);
   std::fprintf(f, "  \"order_reduced_steps\": %ld,\n", r.order_reduced_steps);
   std::fprintf(f, "  \"max_halvings\": %d,\n", r.max_halvings);
@@ -336,12 +345,17 @@ int run(const Options& opt) {
   }
 
   using Clock = std::chrono::steady_clock;
-  for (long k = 0; k < total_steps && !stats.failure; ++k) {
+  // Error-controlled stepping runs to the duration in the steps its control
+  // picks, the last one landing on it; --steps N takes N such steps.
+  const bool to_time = sim->adaptive() && !opt.steps;
+  const double t_end = opt.duration.value_or(1.0);
+  for (long k = 0; (to_time ? sim->time() < t_end - 1e-9 * dt : k < total_steps) && !stats.failure;
+       ++k) {
     const double t_before = sim->time();
     cloth_sim::StepStats s;
     const auto start = Clock::now();
     try {
-      s = sim->step();
+      s = to_time ? sim->stepToward(t_end) : sim->step();
     } catch (const std::exception& e) {
       s.ok = false;
       s.failure = std::string("exception: ") + e.what();

@@ -45,7 +45,6 @@ SceneError::SceneError(const std::string& message) : std::runtime_error(printabl
 namespace scene_yaml {
 
 constexpr long long kMaxNodes = 4000000;  // a typo like rows: 200000 fails here, not in malloc
-constexpr int kMaxHalvings = 30;          // dt / 2^30 is far below any useful step
 
 // ------------------------------------------------------------ messages ----
 
@@ -268,60 +267,6 @@ void readSprings(const YAML::Node& node, Scene* scene) {
            "unknown damping model '" + name + "' (expected along_spring, relative_velocity)");
     }
   }
-}
-
-void readSolver(const YAML::Node& node, Scene::Solver* solver) {
-  const Fields f(node, "solver",
-                 {"method", "dt", "tolerance", "max_iterations", "preconditioner",
-                  "multigrid_reuse", "project_compression", "newton_tolerance",
-                  "newton_max_iterations", "max_halvings", "recovery"});
-  if (f.has("method")) {
-    const std::string name = readName(f.get("method"), f.path("method"));
-    if (!parseMethod(name, &solver->method)) {
-      fail(f.path("method"), "unknown method '" + name +
-                                 "' (expected implicit_euler, newton, bdf2, symplectic_euler)");
-    }
-  }
-  if (f.has("dt")) solver->dt = readNumber(f.get("dt"), f.path("dt"));
-  if (f.has("tolerance")) solver->tolerance = readNumber(f.get("tolerance"), f.path("tolerance"));
-  if (f.has("max_iterations")) {
-    solver->max_iterations = readInt(f.get("max_iterations"), f.path("max_iterations"));
-  }
-  if (f.has("preconditioner")) {
-    const std::string name = readName(f.get("preconditioner"), f.path("preconditioner"));
-    if (name == "none") {
-      solver->preconditioner = Preconditioner::None;
-    } else if (name == "block_jacobi") {
-      solver->preconditioner = Preconditioner::BlockJacobi;
-    } else if (name == "cholesky") {
-      solver->preconditioner = Preconditioner::Cholesky;
-    } else if (name == "multigrid") {
-      solver->preconditioner = Preconditioner::Multigrid;
-    } else if (name == "auto") {
-      solver->preconditioner = Preconditioner::Auto;
-    } else {
-      fail(f.path("preconditioner"), "unknown preconditioner '" + name +
-                                         "' (expected auto, none, block_jacobi, cholesky, multigrid)");
-    }
-  }
-  if (f.has("multigrid_reuse")) {
-    solver->multigrid_reuse = readInt(f.get("multigrid_reuse"), f.path("multigrid_reuse"));
-  }
-  if (f.has("project_compression")) {
-    solver->project_compression =
-        readBool(f.get("project_compression"), f.path("project_compression"));
-  }
-  if (f.has("newton_tolerance")) {
-    solver->newton_tolerance = readNumber(f.get("newton_tolerance"), f.path("newton_tolerance"));
-  }
-  if (f.has("newton_max_iterations")) {
-    solver->newton_max_iterations =
-        readInt(f.get("newton_max_iterations"), f.path("newton_max_iterations"));
-  }
-  if (f.has("max_halvings")) {
-    solver->max_halvings = readInt(f.get("max_halvings"), f.path("max_halvings"));
-  }
-  if (f.has("recovery")) solver->recovery = readBool(f.get("recovery"), f.path("recovery"));
 }
 
 void readInitial(const YAML::Node& node, Scene::Initial* initial) {
@@ -703,20 +648,6 @@ void validateSprings(const Scene& scene) {
       fail(stiffness_path, "must be > 0 for an enabled group, got 0");
     }
     requireNonNegative(group.damping, path + ".damping");
-  }
-}
-
-void validateSolver(const Scene::Solver& solver) {
-  requirePositive(solver.dt, "solver.dt");
-  requireFraction(solver.tolerance, "solver.tolerance");
-  requireAtLeast(solver.max_iterations, 1, "solver.max_iterations");
-  requireAtLeast(solver.multigrid_reuse, 1, "solver.multigrid_reuse");
-  requireFraction(solver.newton_tolerance, "solver.newton_tolerance");
-  requireAtLeast(solver.newton_max_iterations, 1, "solver.newton_max_iterations");
-  requireAtLeast(solver.max_halvings, 0, "solver.max_halvings");
-  if (solver.max_halvings > kMaxHalvings) {
-    fail("solver.max_halvings", "must be <= " + std::to_string(kMaxHalvings) + ", got " +
-                                    std::to_string(solver.max_halvings));
   }
 }
 

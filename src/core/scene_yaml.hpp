@@ -33,6 +33,14 @@ void requireFinite(double value, const std::string& path);
 void requirePositive(double value, const std::string& path);
 void requireNonNegative(double value, const std::string& path);
 void requireFiniteVec(const Vec3& value, const std::string& path);
+void requireFraction(double value, const std::string& path);  ///< in (0, 1)
+void requireAtLeast(long long value, long long minimum, const std::string& path);
+
+// scene_solver.cpp
+/// Reads `solver` (absent: the defaults).
+void readSolver(const YAML::Node& node, Scene::Solver* solver);
+/// Checks every solver field (the method's own limits included).
+void validateSolver(const Scene::Solver& solver);
 
 // scene_colliders.cpp
 /// Reads `contact` and `colliders` (either may be absent).

@@ -95,6 +95,7 @@ void Simulation::reset() {
   pins_.clear();
   for (int p : scene_.pins) pins_[p] = PinTarget{position(p), Vec3::Zero(), 0.0};
   size_ = std::hypot(scene_.cloth.cols > 1 ? scene_.cloth.width : 0.0, scene_.cloth.length);
+  resetStepControl();
 }
 
 std::vector<int> Simulation::pinnedNodes() const {
@@ -106,7 +107,10 @@ std::vector<int> Simulation::pinnedNodes() const {
 
 // ------------------------------------------------------------ stepping ----
 
-StepStats Simulation::step() { return step(scene_.solver.dt); }
+StepStats Simulation::step() {
+  return adaptive() ? stepToward(std::numeric_limits<double>::infinity())
+                    : step(scene_.solver.dt);
+}
 
 StepStats Simulation::step(double h) {
   if (!(h > 0.0) || !std::isfinite(h)) {
@@ -116,39 +120,14 @@ StepStats Simulation::step(double h) {
     return bad;
   }
   applyDueEvents();
-  // Checkpoint, so a step that fails even after recovery changes nothing.
-  // Member buffers: no allocation once sized.
-  if (scene_.solver.recovery) {
-    checkpoint_.x = x_;
-    checkpoint_.v = v_;
-    checkpoint_.x_prev = x_prev_;
-    checkpoint_.v_prev = v_prev_;
-    checkpoint_.has_prev = has_prev_;
-    checkpoint_.t = t_;
-    checkpoint_.h_prev = h_prev_;
-    checkpoint_.work = work_in_total_;
-    checkpoint_.pins.assign(pins_.begin(), pins_.end());
-    checkpoint_.colliders = collider_states_;
-    checkpoint_.max_penetration = max_penetration_;
-    checkpoint_.min_self_distance = min_self_distance_;
-  }
+  // Checkpoint, so a step that fails even after recovery changes nothing
+  // (and error control can take a step back).
+  if (scene_.solver.recovery || adaptive()) saveCheckpoint();
   StepStats stats = stepWithRecovery(h, 0);
-  if (!stats.ok && scene_.solver.recovery) {
-    x_ = checkpoint_.x;
-    v_ = checkpoint_.v;
-    x_prev_ = checkpoint_.x_prev;
-    v_prev_ = checkpoint_.v_prev;
-    has_prev_ = checkpoint_.has_prev;
-    t_ = checkpoint_.t;
-    h_prev_ = checkpoint_.h_prev;
-    work_in_total_ = checkpoint_.work;
-    pins_ = std::map<int, PinTarget>(checkpoint_.pins.begin(), checkpoint_.pins.end());
-    collider_states_ = checkpoint_.colliders;
-    max_penetration_ = checkpoint_.max_penetration;
-    min_self_distance_ = checkpoint_.min_self_distance;
-    measures_ = measureEnergy(model_, x_, v_);
-  }
+  if (!stats.ok && scene_.solver.recovery) restoreCheckpoint();
   if (stats.ok) ++step_count_;
+  stats.h_max = h;
+  stats.h_min = std::ldexp(h, -stats.halvings);
   stats.energy = measures_.total();
   stats.max_strain = measures_.max_strain;
   stats.finite = x_.allFinite() && v_.allFinite();
@@ -525,7 +504,8 @@ bool sameSolver(const Scene::Solver& a, const Scene::Solver& b) {
          a.project_compression == b.project_compression &&
          a.newton_tolerance == b.newton_tolerance &&
          a.newton_max_iterations == b.newton_max_iterations &&
-         a.max_halvings == b.max_halvings && a.recovery == b.recovery;
+         a.max_halvings == b.max_halvings && a.recovery == b.recovery &&
+         a.error_tolerance == b.error_tolerance && a.dt_min == b.dt_min && a.dt_max == b.dt_max;
 }
 }  // namespace
 
@@ -567,6 +547,7 @@ Status Simulation::retune(const Tuning& tuning) {
   if (!sameSolver(scene_.solver, tuning.solver)) {
     scene_.solver = tuning.solver;
     stepper_ = Stepper(scene_.solver);
+    resetStepControl();
   }
   measures_ = measureEnergy(model_, x_, v_);
   return Status::success();

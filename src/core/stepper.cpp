@@ -147,6 +147,16 @@ StepStats Stepper::bdf2(const Model& model, double h, const History& history, Ve
     av_ = (4.0 * v - *history.v_prev) / 3.0;
     return newtonSolve(model, h, 2.0 / 3.0, ax_, av_, max_it, x, v);
   }
+  if (history.x_prev && history.v_prev && settings_.error_tolerance && history.h_prev > 0.0) {
+    // Variable-step BDF2 (error-controlled stepping changes h): with
+    // w = h / h_prev, x1 = [(1+w)^2 x0 - w^2 x_prev] / (1+2w) + (1+w)/(1+2w) h v1.
+    // Zero-stable for w < 1 + sqrt(2); StepSizeControl grows by at most 2.
+    const double w = h / history.h_prev;
+    const double c0 = (1.0 + w) * (1.0 + w) / (1.0 + 2.0 * w), c1 = w * w / (1.0 + 2.0 * w);
+    ax_ = c0 * x - c1 * *history.x_prev;
+    av_ = c0 * v - c1 * *history.v_prev;
+    return newtonSolve(model, h, (1.0 + w) / (1.0 + 2.0 * w), ax_, av_, max_it, x, v);
+  }
   // Trapezoidal rule: x1 = x + h/2 (v + v1), M v1 = M v + h/2 (f(x, v) + f(x1, v1)).
   computeForces(model, x, v, f_);
   ax_ = x + 0.5 * h * v;

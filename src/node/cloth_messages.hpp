@@ -27,6 +27,8 @@ struct TickStats {
   double energy = 0.0;      ///< after the last step
   double max_strain = 0.0;  ///< after the last step
   int rejected = 0;         ///< attempts rolled back by recovery
+  int error_rejected = 0;   ///< error-controlled steps redone smaller
+  double h_min = 0.0, h_max = 0.0;  ///< step sizes taken, s
   int contacts = 0;         ///< nodes in contact after the last step
   double contact_normal_force = 0.0;  ///< after the last step, N
   int self_contacts = 0;    ///< self-collision pairs within the thickness after the last step

@@ -200,9 +200,14 @@ void ClothNode::onTick(const ros::SteadyTimerEvent& /*event*/) {
 
   TickStats tick;
   tick.dt = step_h_;
-  for (int k = 0; k < steps_per_tick_; ++k) {
-    tick.add(sim_.step(step_h_));
-    if (!tick.ok) break;  // the core rolled back; the next tick tries again
+  if (sim_.adaptive()) {
+    // Error-controlled: as many steps as the tick needs, the last on its end.
+    tick.add(sim_.advanceTo(sim_.time() + tick_s_));
+  } else {
+    for (int k = 0; k < steps_per_tick_; ++k) {
+      tick.add(sim_.step(step_h_));
+      if (!tick.ok) break;  // the core rolled back; the next tick tries again
+    }
   }
   const ros::SteadyTime publish_start = ros::SteadyTime::now();
   const ros::Time stamp = ros::Time::now();  // the cloth and its colliders at once
@@ -226,6 +231,11 @@ void ClothNode::onTick(const ros::SteadyTimerEvent& /*event*/) {
   window_.cg_max = std::max(window_.cg_max, tick.cg_iterations);
   window_.residual_max = std::max(window_.residual_max, tick.residual);
   window_.rejected += tick.rejected;
+  window_.error_rejected += tick.error_rejected;
+  if (tick.h_min > 0.0) {
+    window_.h_min = window_.h_min > 0.0 ? std::min(window_.h_min, tick.h_min) : tick.h_min;
+  }
+  window_.h_max = std::max(window_.h_max, tick.h_max);
   window_.sim_time_s += sim_.time() - sim_before;
   if (!tick.ok) {
     window_.failures += 1;
@@ -561,6 +571,13 @@ void ClothNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
   stat.addf("tick time max (ms)", "%.3f", 1e3 * w.busy_max_s);
   stat.add("steps per tick", steps_per_tick_);
   stat.addf("dt (s)", "%.17g", step_h_);
+  // The sizes the steps had (error control picks them; recovery may split).
+  stat.addf("step size min (s)", "%.6g", w.h_min);
+  stat.addf("step size max (s)", "%.6g", w.h_max);
+  if (sim_.adaptive()) {
+    stat.addf("error tolerance", "%.3g", *sim_.scene().solver.error_tolerance);
+    stat.add("error-rejected steps", w.error_rejected);
+  }
   stat.addf("CG iterations (per tick)", "%.1f", w.cg_iterations / ticks);
   stat.add("CG iterations max (per tick)", w.cg_max);
   stat.addf("residual max", "%.3g", w.residual_max);

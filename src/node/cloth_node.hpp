@@ -53,6 +53,8 @@ class ClothNode {
     int overruns = 0;
     int failures = 0;
     int rejected = 0;
+    int error_rejected = 0;           ///< error control's redone steps
+    double h_min = 0.0, h_max = 0.0;  ///< step sizes taken, s
     double busy_s = 0.0;      ///< wall time of the ticks' work
     double busy_max_s = 0.0;
     double step_s = 0.0;      ///< wall time inside Simulation::step
