@@ -56,6 +56,26 @@ TEST(Diagnostics, HealthyNodeReportsOkWithItsFigures) {
   EXPECT_EQ(NodeClient::value(d, "bend stiffness (N/m)"), "<missing bend stiffness (N/m)>");
 }
 
+TEST(Diagnostics, ErrorControlledNodeReportsItsStepSizes) {
+  NodeClient client("/cloth_adaptive");
+  const DiagnosticStatus d = settledStatus(client);
+  EXPECT_EQ(d.level, DiagnosticStatus::OK) << d.message;
+  EXPECT_EQ(number(d, "error tolerance"), 1e-3);
+  const double h_min = number(d, "step size min (s)"), h_max = number(d, "step size max (s)");
+  EXPECT_GT(h_min, 0.0);
+  EXPECT_GE(h_max, h_min);
+  EXPECT_LE(h_max, 1.0 / 30.0 + 1e-9);  // never past a tick's end
+  EXPECT_GE(number(d, "error-rejected steps"), 0.0);
+  EXPECT_NEAR(number(d, "real-time factor"), 1.0, 0.2);
+  EXPECT_EQ(number(d, "failures total"), 0.0);
+  // The fixed-step node has no error control to report.
+  NodeClient fixed("/cloth_sim");
+  DiagnosticStatus f;
+  ASSERT_TRUE(fixed.waitDiagnostics(&f, 10.0));
+  EXPECT_EQ(NodeClient::value(f, "error tolerance"), "<missing error tolerance>");
+  EXPECT_NEAR(number(f, "step size max (s)"), 1.0 / 270.0, 1e-8);  // printed to 6 digits
+}
+
 TEST(Diagnostics, FailingSolverReportsErrorAndPublishesOnlyFinitePoints) {
   NodeClient client("/cloth_fail");
   ros::NodeHandle nh;
