@@ -74,14 +74,6 @@ void selfCollisionMasses(const std::vector<int>& pinned, const ContactSet& conta
 int pushedIntoCollider(const CollidersOverStep& colliders, const VecX& before,
                        const VecX& after, std::string* which);
 
-/// The springs' elastic energy that is second order in the filter's
-/// displacement (before -> after): E(after) - E(before) - grad E(before) .
-/// (after - before), J. Moving contact nodes after the solve, not in it,
-/// stores about 1/2 k |dx|^2 in the springs to their unmoved neighbours
-/// (dx ~ the approach of one step, O(h^2)): a splitting error, not work
-/// that the energy check should halve away. First-order work stays checked.
-double filterSecondOrderElastic(const Model& model, const VecX& before, const VecX& after);
-
 class SelfCollision {
  public:
   SelfCollision() = default;

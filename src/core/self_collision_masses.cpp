@@ -74,23 +74,4 @@ int pushedIntoCollider(const CollidersOverStep& colliders, const VecX& before,
   return -1;
 }
 
-double filterSecondOrderElastic(const Model& model, const VecX& before, const VecX& after) {
-  double total = 0.0;
-  for (const SpringGroup& g : model.groups) {
-    if (!g.present || g.stiffness == 0.0) continue;
-    for (int k = g.begin; k < g.end; ++k) {
-      const Spring& s = model.springs[k];
-      const Vec3 d0 = before.segment<3>(3 * s.j) - before.segment<3>(3 * s.i);
-      const Vec3 d1 = after.segment<3>(3 * s.j) - after.segment<3>(3 * s.i);
-      if (d0 == d1) continue;  // neither end moved relative to the other
-      const double l0 = d0.norm(), l1 = d1.norm();
-      const double e0 = 0.5 * g.stiffness * (l0 - s.rest_length) * (l0 - s.rest_length);
-      const double e1 = 0.5 * g.stiffness * (l1 - s.rest_length) * (l1 - s.rest_length);
-      const double slope = l0 > 0.0 ? g.stiffness * (l0 - s.rest_length) / l0 * d0.dot(d1 - d0) : 0.0;
-      total += e1 - e0 - slope;
-    }
-  }
-  return total;
-}
-
 }  // namespace cloth_sim

@@ -228,7 +228,7 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
   }
   StepStats stats = stepper_.step(model_, h, pin_ends_, history, x_, v_, as, collider_step_);
   stepper_.setEnergyStop(nullptr, 0.0);
-  double self_pin_work = 0.0, self_splitting = 0.0;
+  double self_pin_work = 0.0;
   if (stats.ok && self_collision_.enabled()) {  // filters x0 -> x1 (self_collision.hpp)
     const auto start = std::chrono::steady_clock::now();
     selfCollisionMasses(pin_ends_.nodes, stepper_.contacts(), collider_step_, x_,
@@ -241,7 +241,6 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
     stats.wall_time_s += stats.self_collision_s;
     if (!self.ok) stats.ok = false, stats.failure = self.failure;
     self_pin_work = self.pin_work;
-    if (stats.ok) self_splitting = std::max(filterSecondOrderElastic(model_, x_pre_self_, x_), 0.0);
     std::string pushed;
     if (stats.ok && pushedIntoCollider(collider_step_, x_pre_self_, x_, &pushed) >= 0) {
       stats.ok = false, stats.failure = pushed;
@@ -275,10 +274,7 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
     // more steps than the plain energy (extrapolating a turning stiff spring
     // stretches it). So bdf2 is held to the same per-step bound; a step that
     // fails it is retried as backward Euler (stepWithRecovery).
-    // The self-collision filter's second-order elastic energy is its
-    // splitting error (self_collision.hpp), not a solver failure.
-    const double gain =
-        after.total() - before.total() - std::max(work, 0.0) - contact_work - self_splitting;
+    const double gain = after.total() - before.total() - std::max(work, 0.0) - contact_work;
     // Symplectic Euler's energy oscillates by design: for it the check only
     // catches a blow-up.
     const double allowance =
