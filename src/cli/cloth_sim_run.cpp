@@ -30,7 +30,8 @@ constexpr int kExitSimulationFailed = 3;
 
 const char* const kUsage =
     "usage: cloth_sim_run SCENE.yaml [--duration S | --steps N] [--set key.path=value]...\n"
-    "                     [--out FILE] [--stats FILE] [--obj FILE] [--trace FILE --every K]";
+    "                     [--out FILE] [--stats FILE] [--obj FILE] [--trace FILE] [--obj-sequence DIR]\n"
+    "                     [--every K]";
 
 const char* const kHelp =
     "\n"
@@ -44,7 +45,9 @@ const char* const kHelp =
     "  --stats FILE       run statistics as one JSON object\n"
     "  --obj FILE         final mesh as Wavefront OBJ with vertex normals\n"
     "  --trace FILE       positions over time, one line per sample: t x0 y0 z0 x1 ...\n"
-    "  --every K          trace every K steps (and at t = 0); default 1\n"
+    "  --obj-sequence DIR one OBJ per sample, DIR/frame_00000.obj, frame_00001.obj, ... (t = 0\n"
+    "                     and every K steps; DIR must exist): a sequence to render\n"
+    "  --every K          trace / obj-sequence every K steps (and at t = 0); default 1\n"
     "  --help             print this help\n"
     "\n"
     "Exit status: 0 success, 2 bad input, 3 the simulation failed (non-finite state or\n"
@@ -60,7 +63,7 @@ struct Options {
   std::optional<double> duration;
   std::optional<long> steps;
   std::vector<std::string> overrides;
-  std::string out_path, stats_path, obj_path, trace_path;
+  std::string out_path, stats_path, obj_path, trace_path, obj_dir;
   std::optional<long> every;
   bool help = false;
 };
@@ -147,6 +150,9 @@ Options parseArguments(int argc, char** argv) {
     } else if (flag == "--trace") {
       once(!opt.trace_path.empty());
       opt.trace_path = takePath();
+    } else if (flag == "--obj-sequence") {
+      once(!opt.obj_dir.empty());
+      opt.obj_dir = takePath();
     } else if (flag == "--every") {
       once(opt.every.has_value());
       opt.every = parseCount(flag, takeValue(), 1);
@@ -160,8 +166,8 @@ Options parseArguments(int argc, char** argv) {
   opt.scene_path = positional[0];
   if (opt.duration && opt.steps)
     throw UsageError{"--duration, --steps: give at most one of them"};
-  if (opt.every && opt.trace_path.empty())
-    throw UsageError{"--every: needs --trace FILE"};
+  if (opt.every && opt.trace_path.empty() && opt.obj_dir.empty())
+    throw UsageError{"--every: needs --trace FILE or --obj-sequence DIR"};
   return opt;
 }
 
@@ -335,6 +341,23 @@ int run(const Options& opt) {
     std::fclose(probe);
   }
 
+  // The OBJ sequence: frame_00000.obj at t = 0, then one per trace sample.
+  long frame = 0;
+  std::string frame_error;
+  auto writeFrame = [&]() {
+    char name[32];
+    std::snprintf(name, sizeof name, "/frame_%05ld.obj", frame++);
+    const std::string path = opt.obj_dir + name;
+    if (!cloth_sim::writeObj(path, sim->model(), sim->positions())) {
+      frame_error = "--obj-sequence: cannot write '" + path + "'";
+    }
+    return frame_error.empty();
+  };
+  if (!opt.obj_dir.empty() && !writeFrame()) {
+    if (trace) std::fclose(trace);
+    return badInput(frame_error);
+  }
+
   RunStats stats;
   stats.energy_initial = sim->energy();
   if (!allFinite(sim->positions()) || !allFinite(sim->velocities())) {
@@ -375,11 +398,13 @@ int run(const Options& opt) {
     stats.add(s);
     stats.wall_time_s += wall;  // completed steps only, so ms_per_step is per step
     if (trace && (k + 1) % every == 0) writeTraceLine(trace, sim->time(), sim->positions());
+    if (!opt.obj_dir.empty() && (k + 1) % every == 0 && !writeFrame()) break;
   }
   const bool failed = stats.failure.has_value();
   stats.energy_final = sim->energy();
 
   int status = kExitOk;
+  if (!frame_error.empty()) status = badInput(frame_error);
   if (trace && std::fclose(trace) != 0)
     status = badInput("--trace: error writing '" + opt.trace_path + "'");
   if (!opt.stats_path.empty() && !writeStats(opt.stats_path, stats, *sim))

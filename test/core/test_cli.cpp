@@ -182,6 +182,28 @@ TEST_F(CliTest, WritesStateStatsAndTrace) {
   EXPECT_EQ(normals, nodes);
 }
 
+TEST_F(CliTest, ObjSequenceWritesOneFramePerSample) {
+  const cloth_sim::Scene scene = cloth_sim::loadScene(kDemo);
+  ASSERT_EQ(std::system(("mkdir '" + path("frames") + "'").c_str()), 0);
+  const RunResult r = run("'" + kDemo + "' --steps 7 --every 3 --obj-sequence '" +
+                          path("frames") + "' --out '" + path("out.txt") + "'");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  // t = 0 and after steps 3 and 6: three frames, the last one the state after step 6.
+  for (const char* name : {"frame_00000.obj", "frame_00001.obj", "frame_00002.obj"}) {
+    int vertices = 0;
+    for (const std::string& line : lines(readFile(path("frames/") + name))) {
+      if (line.rfind("v ", 0) == 0) ++vertices;
+    }
+    EXPECT_EQ(vertices, scene.numNodes()) << name;
+  }
+  EXPECT_EQ(readFile(path("frames/frame_00003.obj")), "");
+  EXPECT_NE(readFile(path("frames/frame_00000.obj")), readFile(path("frames/frame_00002.obj")));
+  // A directory that does not exist: refused before any step, naming the flag.
+  const RunResult bad = run("'" + kDemo + "' --steps 2 --obj-sequence '" + path("missing") + "'");
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_NE(bad.err.find("--obj-sequence: cannot write"), std::string::npos) << bad.err;
+}
+
 TEST_F(CliTest, DurationRoundsUpToWholeSteps) {
   // 0.01 s at dt 0.004 is 2.5 steps -> 3; 0.012 s is 3 steps despite round-off.
   for (const char* duration : {"0.01", "0.012"}) {
