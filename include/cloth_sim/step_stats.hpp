@@ -8,7 +8,9 @@ namespace cloth_sim {
 
 struct StepStats {
   int cg_iterations = 0;      ///< summed over Newton iterations and sub-steps
-  double residual = 0.0;      ///< largest final relative CG residual ||r||/||b||
+  /// largest final relative CG residual ||r||/||b|| of the solves held to
+  /// solver.tolerance (inexact Newton's looser ones are judged by ||g||)
+  double residual = 0.0;
   int newton_iterations = 0;  ///< nonlinear iterations (1 for implicit_euler)
   double newton_residual = 0.0;  ///< final ||g|| / ||g0|| (newton, bdf2)
   bool linear_converged = true;  ///< every CG solve met its tolerance

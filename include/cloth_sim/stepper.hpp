@@ -90,7 +90,8 @@ class Stepper {
   StepStats symplecticEuler(const Model& model, double h, VecX& x, VecX& v);
   void setPins(const Model& model, const PinnedEnds& pins);
   /// CG on A_ x = b (x: warm start and answer) with the scene's solver settings.
-  CgResult solveLinear(const Model& model, const VecX& b, VecX& x);
+  /// CG on A x = b to `tolerance` (relative; 0: solver.tolerance).
+  CgResult solveLinear(const Model& model, const VecX& b, VecX& x, double tolerance = 0.0);
   /// g = M (v1 - av) - beta h f(ax + beta h v1, v1) on free nodes; returns ||g||.
   double residual(const Model& model, double bh, const VecX& ax, const VecX& av,
                   const VecX& v1, VecX& x1, VecX& g);
