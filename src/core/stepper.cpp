@@ -305,15 +305,14 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
     // Inexact Newton (Eisenstat & Walker 1996, their choice 2): far from the
     // answer a loose linear solve serves as well as a tight one, so the CG
     // tolerance follows ||g||'s convergence, eta = 0.9 (||g_k|| / ||g_k-1||)^2,
-    // between solver.tolerance and kMaxForcing. One iteration: its solve is
-    // the step's answer.
-    // Only where CG iterations are the cost (block Jacobi, none): a Cholesky
-    // factor or a multigrid hierarchy costs the same at any tolerance, and
-    // the extra Newton iterations a loose solve brings each pay for a new
-    // one (falling 20x20, stretch 1e8, bdf2: 5.4 -> 10.6 s with it).
+    // between solver.tolerance and kMaxForcing. Not with one iteration (its
+    // solve is the step's answer), not in implicit_euler's refinement (its
+    // decrement stop needs an accurate direction), and only where CG
+    // iterations are the cost (block Jacobi, none): a Cholesky factor or a
+    // multigrid hierarchy costs the same at any tolerance, and the extra
+    // Newton iterations a loose solve brings each pay for a new one (falling
+    // 20x20, stretch 1e8, bdf2: 5.4 -> 10.6 s with it).
     double cg_tolerance = settings_.tolerance;
-    // Not in implicit_euler's refinement (stopped on its decrement and
-    // energy, which an inexact direction would misstate).
     if (max_iterations > 1 && !energy_stop_ && decrement_stop_ == 0.0 &&
         (preconditioner_ == Preconditioner::BlockJacobi ||
          preconditioner_ == Preconditioner::None)) {
