@@ -9,37 +9,10 @@
 
 #include "cloth_sim/collision_geometry.hpp"
 #include "cloth_sim/simulation.hpp"
+#include "../common/cloth_checks.hpp"
 
 namespace cloth_sim {
 namespace {
-
-/// Pairs of triangles sharing no node that intersect (exact test), with a
-/// sort-and-sweep broad phase of its own (not the simulator's hash).
-int intersections(const Model& m, const VecX& x) {
-  const auto& T = m.triangles;
-  const int n = static_cast<int>(T.size());
-  std::vector<Eigen::AlignedBox3d> box(n);
-  std::vector<int> order(n);
-  for (int t = 0; t < n; ++t) {
-    for (int k = 0; k < 3; ++k) box[t].extend(Vec3(x.segment<3>(3 * T[t][k])));
-    order[t] = t;
-  }
-  std::sort(order.begin(), order.end(), [&](int a, int b) { return box[a].min().x() < box[b].min().x(); });
-  auto p = [&](int i) { return Vec3(x.segment<3>(3 * i)); };
-  int count = 0;
-  for (int ia = 0; ia < n; ++ia) {
-    for (int ib = ia + 1; ib < n; ++ib) {
-      const int a = order[ia], b = order[ib];
-      if (box[b].min().x() > box[a].max().x()) break;
-      if (!box[a].intersects(box[b])) continue;
-      bool shared = false;
-      for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) shared = shared || T[a][i] == T[b][j];
-      if (!shared) count += trianglesIntersect(p(T[a][0]), p(T[a][1]), p(T[a][2]), p(T[b][0]), p(T[b][1]), p(T[b][2]));
-    }
-  }
-  return count;
-}
 
 TEST(FoldDemo, TowelEndsFoldedInTwoLayersWithoutIntersecting) {
   const Scene scene = loadScene(std::string(CLOTH_SIM_SOURCE_DIR) + "/config/scenes/fold.yaml");
@@ -50,7 +23,7 @@ TEST(FoldDemo, TowelEndsFoldedInTwoLayersWithoutIntersecting) {
     const StepStats st = sim.step();
     ASSERT_TRUE(st.ok) << "step " << n << ": " << st.failure;
     ASSERT_TRUE(sim.positions().allFinite());
-    ASSERT_EQ(intersections(sim.model(), sim.positions()), 0) << "step " << n << " t = " << sim.time();
+    ASSERT_EQ(test::selfIntersections(sim.model(), sim.positions()), 0) << "step " << n << " t = " << sim.time();
   }
   double z_min = 1e9, z_max = -1e9, y_min = 1e9, y_max = -1e9;
   for (int i = 0; i < sim.numNodes(); ++i) {

@@ -9,6 +9,7 @@
 #include "cloth_sim/collision_geometry.hpp"
 #include "cloth_sim/simulation.hpp"
 #include "scene_builders.hpp"
+#include "../common/cloth_checks.hpp"
 
 namespace cloth_sim {
 namespace {
@@ -66,24 +67,6 @@ VecX foldedPositions(const Model& m, double z0, double r) {
   return x;
 }
 
-/// Pairs of triangles sharing no node that intersect (exact test).
-int intersections(const Model& m, const VecX& x) {
-  int count = 0;
-  const auto& T = m.triangles;
-  auto p = [&](int i) { return Vec3(x.segment<3>(3 * i)); };
-  for (size_t a = 0; a < T.size(); ++a) {
-    for (size_t b = a + 1; b < T.size(); ++b) {
-      bool shared = false;
-      for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) shared = shared || T[a][i] == T[b][j];
-      if (shared) continue;
-      count += trianglesIntersect(p(T[a][0]), p(T[a][1]), p(T[a][2]), p(T[b][0]), p(T[b][1]),
-                                  p(T[b][2]));
-    }
-  }
-  return count;
-}
-
 struct RunResult {
   int steps = 0;
   int max_intersections = 0;
@@ -95,14 +78,14 @@ struct RunResult {
 /// (counted), energy not gained beyond the work the pins did.
 RunResult run(Simulation& sim, int steps) {
   RunResult r;
-  EXPECT_EQ(intersections(sim.model(), sim.positions()), 0) << "the start must be clean";
+  EXPECT_EQ(test::selfIntersections(sim.model(), sim.positions()), 0) << "the start must be clean";
   double energy = sim.energy();
   for (int k = 0; k < steps; ++k) {
     const StepStats st = sim.step();
     EXPECT_TRUE(st.ok) << "step " << k << ": " << st.failure;
     EXPECT_TRUE(st.finite) << "step " << k;
     if (!st.ok || !st.finite) break;
-    r.max_intersections = std::max(r.max_intersections, intersections(sim.model(), sim.positions()));
+    r.max_intersections = std::max(r.max_intersections, test::selfIntersections(sim.model(), sim.positions()));
     r.max_gain = std::max(r.max_gain, st.energy - energy - st.work_in);
     energy = st.energy;
     r.final_self_contacts = st.self_contacts;
@@ -141,7 +124,7 @@ TEST(SelfCollision, WithoutItTheFoldedDropIntersects) {
   int most = 0;
   for (int k = 0; k < 100; ++k) {
     sim.step();
-    most = std::max(most, intersections(sim.model(), sim.positions()));
+    most = std::max(most, test::selfIntersections(sim.model(), sim.positions()));
   }
   EXPECT_GT(most, 10);
 }

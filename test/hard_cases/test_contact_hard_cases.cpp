@@ -17,6 +17,7 @@
 #include <sstream>
 
 #include "cloth_sim/simulation.hpp"
+#include "../common/cloth_checks.hpp"
 
 namespace cloth_sim {
 namespace {
@@ -24,20 +25,6 @@ namespace {
 const std::string kDir = std::string(CLOTH_SIM_SOURCE_DIR) + "/config/scenes/hard/contact/";
 constexpr double kMaxPenetration = 1e-6;  // m
 constexpr double kStepEnergyTolerance = 1e-6;  // of the energy scale, as the core's recovery
-
-std::map<std::string, std::string> passBounds(const std::string& path) {
-  std::ifstream in(path);
-  std::map<std::string, std::string> found;
-  std::string line;
-  const std::string tag = "# pass.";
-  while (std::getline(in, line)) {
-    if (line.rfind(tag, 0) != 0) continue;
-    const size_t colon = line.find(':');
-    std::istringstream value(line.substr(colon + 1));
-    value >> found[line.substr(tag.size(), colon - tag.size())];
-  }
-  return found;
-}
 
 struct ContactRun {
   std::string file;
@@ -49,7 +36,7 @@ class ContactHardCase : public testing::TestWithParam<ContactRun> {};
 
 TEST_P(ContactHardCase, PassesWithoutPenetration) {
   const ContactRun& run = GetParam();
-  const auto bounds = passBounds(kDir + run.file);
+  const auto bounds = test::passBounds(kDir + run.file);
   Scene scene = loadScene(kDir + run.file);
   scene.solver.method = run.method;
   Simulation sim(scene);
@@ -112,11 +99,7 @@ std::vector<ContactRun> runs() {
 }
 
 std::string name(const testing::TestParamInfo<ContactRun>& info) {
-  std::string n = info.param.file.substr(0, info.param.file.find('.')) + "_" + toString(info.param.method);
-  for (char& c : n) {
-    if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
-  }
-  return n;
+  return test::caseName(info.param.file, toString(info.param.method));
 }
 
 INSTANTIATE_TEST_SUITE_P(Scenes, ContactHardCase, testing::ValuesIn(runs()), name);

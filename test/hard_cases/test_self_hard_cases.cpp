@@ -22,59 +22,13 @@
 
 #include "cloth_sim/collision_geometry.hpp"
 #include "cloth_sim/simulation.hpp"
+#include "../common/cloth_checks.hpp"
 
 namespace cloth_sim {
 namespace {
 
 const std::string kDir = std::string(CLOTH_SIM_SOURCE_DIR) + "/config/scenes/hard/self/";
 constexpr double kMaxPenetration = 1e-6;  // m, as the contact hard cases
-
-std::map<std::string, std::string> passBounds(const std::string& path) {
-  std::ifstream in(path);
-  std::map<std::string, std::string> found;
-  std::string line;
-  const std::string tag = "# pass.";
-  while (std::getline(in, line)) {
-    if (line.rfind(tag, 0) != 0) continue;
-    const size_t colon = line.find(':');
-    std::istringstream value(line.substr(colon + 1));
-    value >> found[line.substr(tag.size(), colon - tag.size())];
-  }
-  return found;
-}
-
-/// Pairs of triangles sharing no node that intersect, by the exact test.
-/// Its own broad phase (sort and sweep along x), independent of the
-/// simulator's spatial hash.
-int intersections(const Model& m, const VecX& x) {
-  const auto& T = m.triangles;
-  const int n = static_cast<int>(T.size());
-  std::vector<Eigen::AlignedBox3d> box(n);
-  std::vector<int> order(n);
-  for (int t = 0; t < n; ++t) {
-    for (int k = 0; k < 3; ++k) box[t].extend(Vec3(x.segment<3>(3 * T[t][k])));
-    order[t] = t;
-  }
-  std::sort(order.begin(), order.end(),
-            [&](int a, int b) { return box[a].min().x() < box[b].min().x(); });
-  auto p = [&](int i) { return Vec3(x.segment<3>(3 * i)); };
-  int count = 0;
-  for (int ia = 0; ia < n; ++ia) {
-    const int a = order[ia];
-    for (int ib = ia + 1; ib < n; ++ib) {
-      const int b = order[ib];
-      if (box[b].min().x() > box[a].max().x()) break;
-      if (!box[a].intersects(box[b])) continue;
-      bool shared = false;
-      for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) shared = shared || T[a][i] == T[b][j];
-      if (shared) continue;
-      count += trianglesIntersect(p(T[a][0]), p(T[a][1]), p(T[a][2]), p(T[b][0]), p(T[b][1]),
-                                  p(T[b][2]));
-    }
-  }
-  return count;
-}
 
 struct SelfRun {
   std::string file;
@@ -93,7 +47,7 @@ struct Outcome {
 /// Runs one case; with `check`, asserts every bound (gtest fatal failures
 /// end the run early, so callers test HasFatalFailure()).
 void runCase(const SelfRun& run, bool self_collision, bool check, Outcome* out) {
-  const auto bounds = passBounds(kDir + run.file);
+  const auto bounds = test::passBounds(kDir + run.file);
   Scene scene = loadScene(kDir + run.file);
   scene.solver.method = run.method;
   scene.self_collision.enabled = self_collision;
@@ -102,7 +56,7 @@ void runCase(const SelfRun& run, bool self_collision, bool check, Outcome* out) 
   const double transient = std::stod(bounds.at("transient"));
   const double max_strain = std::stod(bounds.at("max_strain"));
   const long steps = std::lround(duration / scene.solver.dt);
-  if (check) ASSERT_EQ(intersections(sim.model(), sim.positions()), 0) << "the start must be clean";
+  if (check) ASSERT_EQ(test::selfIntersections(sim.model(), sim.positions()), 0) << "the start must be clean";
   for (long n = 0; n < steps; ++n) {
     const std::clock_t c0 = std::clock();
     const StepStats st = sim.step();
@@ -117,7 +71,7 @@ void runCase(const SelfRun& run, bool self_collision, bool check, Outcome* out) 
     ASSERT_TRUE(st.ok) << "step " << n << " t = " << sim.time() << ": " << st.failure;
     ASSERT_TRUE(sim.positions().allFinite() && sim.velocities().allFinite()) << "step " << n;
     ASSERT_LE(st.max_penetration, kMaxPenetration) << "step " << n;
-    const int crossing = intersections(sim.model(), sim.positions());
+    const int crossing = test::selfIntersections(sim.model(), sim.positions());
     out->max_intersections = std::max(out->max_intersections, crossing);
     ASSERT_EQ(crossing, 0) << "step " << n << " t = " << sim.time();
     if (sim.time() > transient + 1e-9) {
@@ -175,11 +129,7 @@ std::vector<SelfRun> runs() {
 }
 
 std::string name(const testing::TestParamInfo<SelfRun>& info) {
-  std::string n = info.param.file.substr(0, info.param.file.find('.')) + "_" + toString(info.param.method);
-  for (char& c : n) {
-    if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
-  }
-  return n;
+  return test::caseName(info.param.file, toString(info.param.method));
 }
 
 INSTANTIATE_TEST_SUITE_P(Scenes, SelfHardCase, testing::ValuesIn(runs()), name);
