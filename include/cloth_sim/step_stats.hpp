@@ -6,6 +6,12 @@
 
 namespace cloth_sim {
 
+/// The smaller step size of two, where 0 means "none taken yet" (StepStats::h_min).
+inline double smallerStep(double a, double b) {
+  if (a <= 0.0) return b;
+  return b <= 0.0 ? a : (a < b ? a : b);
+}
+
 struct StepStats {
   int cg_iterations = 0;      ///< summed over Newton iterations and sub-steps
   /// largest final relative CG residual ||r||/||b|| of the solves held to

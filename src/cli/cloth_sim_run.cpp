@@ -232,7 +232,7 @@ struct RunStats {
     substeps += s.substeps;
     rejected_steps += s.rejected;
     error_rejected_steps += s.error_rejected;
-    if (s.h_min > 0.0) h_min = h_min > 0.0 ? std::min(h_min, s.h_min) : s.h_min;
+    h_min = cloth_sim::smallerStep(h_min, s.h_min);
     h_max = std::max(h_max, s.h_max);
     refined_steps += s.refined;
     order_reduced_steps += s.order_reduced;

@@ -1,5 +1,5 @@
 // Error-controlled stepping (solver.error_tolerance) and the checkpoint that
-// lets a step be taken back: Simulation::advanceTo, adaptiveStep.
+// lets a step be taken back: Simulation::stepToward, advanceTo.
 #include <algorithm>
 #include <cmath>
 #include <limits>

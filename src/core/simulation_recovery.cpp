@@ -36,9 +36,7 @@ void Simulation::accumulate(const StepStats& part, StepStats* total) const {
   total->rejected += part.rejected;
   total->error_rejected += part.error_rejected;
   total->error_per_time = std::max(total->error_per_time, part.error_per_time);
-  if (part.h_min > 0.0) {
-    total->h_min = total->h_min > 0.0 ? std::min(total->h_min, part.h_min) : part.h_min;
-  }
+  total->h_min = smallerStep(total->h_min, part.h_min);
   total->h_max = std::max(total->h_max, part.h_max);
   total->halvings = std::max(total->halvings, part.halvings);
   total->linearized += part.linearized;

@@ -17,7 +17,7 @@ void TickStats::add(const cloth_sim::StepStats& s) {
   max_strain = s.max_strain;
   rejected += s.rejected;
   error_rejected += s.error_rejected;
-  if (s.h_min > 0.0) h_min = h_min > 0.0 ? std::min(h_min, s.h_min) : s.h_min;
+  h_min = cloth_sim::smallerStep(h_min, s.h_min);
   h_max = std::max(h_max, s.h_max);
   contacts = s.contacts;
   contact_normal_force = s.contact_normal_force;

@@ -232,9 +232,7 @@ void ClothNode::onTick(const ros::SteadyTimerEvent& /*event*/) {
   window_.residual_max = std::max(window_.residual_max, tick.residual);
   window_.rejected += tick.rejected;
   window_.error_rejected += tick.error_rejected;
-  if (tick.h_min > 0.0) {
-    window_.h_min = window_.h_min > 0.0 ? std::min(window_.h_min, tick.h_min) : tick.h_min;
-  }
+  window_.h_min = cloth_sim::smallerStep(window_.h_min, tick.h_min);
   window_.h_max = std::max(window_.h_max, tick.h_max);
   window_.sim_time_s += sim_.time() - sim_before;
   if (!tick.ok) {
