@@ -132,6 +132,8 @@ class ContactSet {
   /// Work the contact forces did on the nodes over the step (J).
   double work(const VecX& x0, const VecX& x1, const VecX& reaction, double bh) const;
   bool empty() const { return nodes_.empty(); }
+  /// Whether node i has a contact.
+  bool holds(int i) const { return i < static_cast<int>(slot_.size()) && slot_[i] >= 0; }
   std::vector<int> contactNodes() const;
   /// Per contactNodes() entry: the surface normal at the end of the step
   /// for a node on one surface, zero for one wedged between two.

@@ -32,7 +32,9 @@ namespace cloth_sim {
 struct SelfCollisionResult {
   bool ok = true;
   std::string failure;  ///< when !ok: why (the caller rejects the step)
-  int contacts = 0;     ///< pairs closer than the thickness at the end
+  /// pairs closer than the thickness at the end, counting those resting on
+  /// it (within kRestingSlack of it: where the response leaves them)
+  int contacts = 0;
   /// smallest distance between non-adjacent primitives at the end; exact
   /// when below the thickness, else some distance >= the thickness (pairs
   /// farther apart are not looked at), infinity when none is near
@@ -76,6 +78,9 @@ int pushedIntoCollider(const CollidersOverStep& colliders, const VecX& before,
 
 class SelfCollision {
  public:
+  /// A pair this fraction of the thickness beyond it still counts as a
+  /// contact (SelfCollisionResult::contacts).
+  static constexpr double kRestingSlack = 1e-3;
   SelfCollision() = default;
   SelfCollision(const Model& model, const Scene::SelfCollision& params);
   bool enabled() const { return enabled_; }

@@ -179,6 +179,20 @@ class Simulation {
   bool pinsDrift() const;
   /// Work the pins did over a step from (x_save_, v_save_) to (x1, v1) (J).
   double pinWork(const VecX& x1, const VecX& v1, double h);
+  // simulation_self.cpp
+  /// The self-collision filter on the solved step x_save_ -> x_ (its time
+  /// and figures into stats; a failure or a node pushed into a collider
+  /// fails it); adds the pins' work through it to pin_work.
+  void filterSelfCollision(double h, StepStats* stats, double* pin_work);
+  /// The self-collision response to the solved step x_save_ -> x_: the
+  /// filter, then the step solved again with every node the filter moved
+  /// prescribed where it put it (along its displacement), so that its
+  /// neighbours follow inside the implicit solve instead of being left
+  /// stretched; repeated while the filter still moves nodes (at most
+  /// kSelfSolves solves). Fills stats (a failure fails it) and adds the pins'
+  /// work through the filter to pin_work.
+  void resolveSelfCollision(double h, const History& history, std::optional<Method> as,
+                            StepStats* stats, double* pin_work);
   StepStats attempt(double h, bool reject_linear, bool reject_newton,
                     std::optional<Method> as = std::nullopt);
   /// attempt(h); a bdf2 step that gains energy is retried as backward Euler;
@@ -220,6 +234,14 @@ class Simulation {
   StepSizeControl step_control_;  ///< with solver.error_tolerance
   std::vector<char> free_nodes_;  ///< reused by the error estimate
   PinnedEnds pin_ends_;  ///< reused per step
+  PinnedEnds pin_ends_self_;  ///< pins plus the nodes the self-collision filter moved
+  /// Per node, in resolveSelfCollision: prescribed, where, and along which
+  /// unit direction (zero: whole).
+  std::vector<char> self_held_;
+  std::vector<Vec3> self_target_, self_direction_;
+  /// Solves a step may take with self-collision: the first and re-solves
+  /// while the filter still moves nodes (resolveSelfCollision).
+  static constexpr int kSelfSolves = 4;
   EnergyParts measures_; ///< of the current state (energy check, stats)
   VecX x_save_, v_save_, force_;
   struct Checkpoint {

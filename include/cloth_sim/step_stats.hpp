@@ -63,6 +63,9 @@ struct StepStats {
   /// (exact below the thickness; infinity when no pair is near)
   double min_self_distance = std::numeric_limits<double>::infinity();
   double self_collision_s = 0.0;  ///< time in the self-collision filter (in wall_time_s)
+  /// solves of the step beyond the first, with the nodes the filter moved
+  /// prescribed (Simulation::resolveSelfCollision)
+  int self_solves = 0;
   bool ok = true;             ///< false: the step failed and the state was rolled back
   std::string failure;        ///< why, when !ok (or what recovery fixed)
 };

@@ -18,6 +18,12 @@ namespace cloth_sim {
 struct PinnedEnds {
   std::vector<int> nodes;
   std::vector<Vec3> targets;
+  /// Empty (every pin whole), or one per pin: zero, the whole position is
+  /// prescribed; a unit vector n, only n . x (the node slides freely across
+  /// n: a self-contact resolved inside the solve). Implicit steppers only.
+  std::vector<Vec3> directions;
+  /// The pin's direction, or zero when its whole position is prescribed.
+  Vec3 direction(size_t k) const { return directions.empty() ? Vec3::Zero() : directions[k]; }
 };
 
 /// The state before the step, for the multistep method (bdf2).
@@ -67,11 +73,22 @@ class Stepper {
   const ContactSet& contacts() const { return contact_; }
   /// Forgets the contact state (reset, or colliders changed).
   void clearContacts() { contact_.clear(); }
+  /// After an implicit step whose pins have directions (or any newton/bdf2
+  /// step): b h times the force its constraints put on each node at the end,
+  /// M (v1 - av) - b h f(x1, v1) (av: v0 for backward Euler), into out (3n).
+  void constraintImpulses(const Model& model, const VecX& x1, const VecX& v1, VecX* out);
 
  private:
   StepStats runMethod(const Model& model, double h, const History& history, VecX& x, VecX& v,
                       Method method);
   StepStats implicitEuler(const Model& model, double h, VecX& x, VecX& v);
+  /// Whether pin k is directional and its node has a collider contact: the
+  /// contact's constraint (its projector and prescribed velocity) then wins,
+  /// as the filter's projector already does (ConstraintFilter::project).
+  bool yieldsToContact(size_t k) const;
+  /// Puts each pinned node exactly on its target (its component along the
+  /// pin's direction, for a directional pin).
+  void placePins(VecX& x) const;
   /// BDF2 from the state one step back; without one (first step, or h
   /// changed) the trapezoidal rule, so the start is second order too (a
   /// backward-Euler start adds an O(h^2) error that dominates settling scenes).

@@ -380,7 +380,7 @@ void SelfCollision::measure(const VecX& x, SelfCollisionResult* result) {
     const double d = kind == 0 ? pointTriangleDistance(at[0], at[1], at[2], at[3])
                                : edgeEdgeDistance(at[0], at[1], at[2], at[3]);
     result->min_distance = std::min(result->min_distance, d);
-    result->contacts += d < thickness_;
+    result->contacts += d < (1.0 + kRestingSlack) * thickness_;
   };
   for (const auto& [node, tri] : pairs_.point_triangle) visit(0, node, tri);
   for (const auto& [ea, eb] : pairs_.edge_edge) visit(1, ea, eb);

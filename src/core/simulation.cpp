@@ -44,12 +44,6 @@ constexpr double kEnergyGainTolerance = 1e-6;
 /// make the pin-jump hard case more accurate (strain 0.053 % against 0.054 %).
 constexpr double kRefineAcceptDecrement = 1e-4;
 
-/// Nodes within this many self-collision thicknesses of a collider's band
-/// are held along its normal by the self-collision filter, as well as those
-/// in contact. Not more: a node held so is a wall the impulses cannot move,
-/// which does work where it moves along the normal (a falling layer above).
-/// A free node pushed into a collider anyway fails the step (halved).
-constexpr double kSelfReach = 0.5;
 
 }  // namespace
 
@@ -207,28 +201,16 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
   }
   StepStats stats = stepper_.step(model_, h, pin_ends_, history, x_, v_, as, collider_step_);
   stepper_.setEnergyStop(nullptr, 0.0);
+  // The self-collision filter, then the step solved again with the nodes it
+  // moved held where it put them (simulation_self.cpp).
   double self_pin_work = 0.0;
-  if (stats.ok && self_collision_.enabled()) {  // filters x0 -> x1 (self_collision.hpp)
-    const auto start = std::chrono::steady_clock::now();
-    selfCollisionMasses(pin_ends_.nodes, stepper_.contacts(), collider_step_, x_,
-                        kSelfReach * scene_.self_collision.thickness, &self_masses_);
-    x_pre_self_ = x_;  // what the filter moved, for the collider check
-    const SelfCollisionResult self = self_collision_.apply(model_, h, x_save_, self_masses_, x_, v_);
-    stats.self_contacts = self.contacts;
-    stats.min_self_distance = self.min_distance;
-    stats.self_collision_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    stats.wall_time_s += stats.self_collision_s;
-    if (!self.ok) stats.ok = false, stats.failure = self.failure;
-    self_pin_work = self.pin_work;
-    std::string pushed;
-    if (stats.ok && pushedIntoCollider(collider_step_, x_pre_self_, x_, &pushed) >= 0) {
-      stats.ok = false, stats.failure = pushed;
-    }
-  }
+  if (stats.ok && self_collision_.enabled()) resolveSelfCollision(h, history, as, &stats, &self_pin_work);
 
   // Work the pins did: reaction at the end of the step times their travel,
   // plus what they did through the self-collision response (impulses they
-  // held against, zones they dragged).
+  // held against, zones they dragged). The nodes the self-collision response
+  // prescribes are not pins: their forces are internal (an inelastic stop
+  // between two layers takes energy out), so nothing is credited for them.
   const double work = self_pin_work + (stats.ok && pins_move ? pinWork(x_, v_, h) : 0.0);
   if (stats.ok && reject_linear && !stats.linear_converged) {
     stats.ok = false;

@@ -51,6 +51,7 @@ void Simulation::accumulate(const StepStats& part, StepStats* total) const {
   total->self_contacts = part.self_contacts;
   total->min_self_distance = std::min(total->min_self_distance, part.min_self_distance);
   total->self_collision_s += part.self_collision_s;
+  total->self_solves += part.self_solves;
   total->ok = total->ok && part.ok;
   if (!part.failure.empty()) total->failure = part.failure;
 }

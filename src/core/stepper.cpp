@@ -40,7 +40,14 @@ CgResult Stepper::solveLinear(const Model& model, const VecX& b, VecX& x, double
 
 void Stepper::setPins(const Model& model, const PinnedEnds& pins) {
   filter_.reset(model.numNodes());
-  for (int node : pins.nodes) filter_.eliminate(node);
+  for (size_t k = 0; k < pins.nodes.size(); ++k) {
+    const Vec3 n = pins.direction(k);
+    if (n.squaredNorm() > 0.0) {
+      filter_.project(pins.nodes[k], Mat3::Identity() - n * n.transpose());
+    } else {
+      filter_.eliminate(pins.nodes[k]);
+    }
+  }
   pins_ = &pins;
   cg_.grid_rows = model.rows;
   cg_.grid_cols = model.cols;
@@ -174,6 +181,7 @@ StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v)
   StepStats stats;
   const int n = model.numNodes();
   auto t0 = Clock::now();
+  if (!pins_->directions.empty()) av_ = v, bh_ = h;  // constraintImpulses
   assembleSystem(model, x, v, h, h * h, settings_.project_compression, A_, f_, &v, &dfdx_v_);
   rhs_ = h * (f_ + h * dfdx_v_);
   // Pinned velocity changes are prescribed: move their columns to the right side.
@@ -187,7 +195,10 @@ StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v)
   }
   for (size_t k = 0; k < pins_->nodes.size(); ++k) {
     const int p = pins_->nodes[k];
-    const Vec3 dv = (pins_->targets[k] - x.segment<3>(3 * p)) / h - v.segment<3>(3 * p);
+    Vec3 dv = (pins_->targets[k] - x.segment<3>(3 * p)) / h - v.segment<3>(3 * p);
+    if (yieldsToContact(k)) continue;
+    const Vec3 n = pins_->direction(k);
+    if (n.squaredNorm() > 0.0) dv = n * n.dot(dv);  // the rest is solved for
     pinned_dv_.segment<3>(3 * p) = dv;
     pins_move = pins_move || dv.squaredNorm() > 0.0;
   }
@@ -219,9 +230,7 @@ StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v)
     bh_ = h;
   }
   dv_ -= pinned_dv_;  // the free part warm-starts the next solve
-  for (size_t k = 0; k < pins_->nodes.size(); ++k) {
-    x.segment<3>(3 * pins_->nodes[k]) = pins_->targets[k];  // exactly on target
-  }
+  placePins(x);
   return stats;
 }
 
@@ -251,11 +260,19 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
   // ax/av may alias x/v: keep copies, x and v are the outputs.
   if (&ax_in != &ax_) ax_ = ax_in;
   if (&av_in != &av_) av_ = av_in;
+  bh_ = bh;
   VecX& v1 = v;
   v1 = av_;
   for (size_t k = 0; k < pins_->nodes.size(); ++k) {  // pins end on their targets
     const int p = pins_->nodes[k];
-    v1.segment<3>(3 * p) = (pins_->targets[k] - ax_.segment<3>(3 * p)) / bh;
+    if (yieldsToContact(k)) continue;
+    const Vec3 w = (pins_->targets[k] - ax_.segment<3>(3 * p)) / bh;
+    const Vec3 n = pins_->direction(k);
+    if (n.squaredNorm() > 0.0) {
+      v1.segment<3>(3 * p) += n * n.dot(w - Vec3(v1.segment<3>(3 * p)));
+    } else {
+      v1.segment<3>(3 * p) = w;
+    }
   }
   if (contact_on_) contact_.prescribe(ax_, bh, v1);
   v_start_ = v1;
@@ -378,9 +395,7 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
   // plus the line search): no tolerance was asked of it. With more, the
   // tolerance holds and missing it at the cap is reported (and acted on).
   stats.newton_converged = g_norm <= target || max_iterations == 1 || decrement_reached;
-  for (size_t k = 0; k < pins_->nodes.size(); ++k) {
-    x.segment<3>(3 * pins_->nodes[k]) = pins_->targets[k];  // exactly on target
-  }
+  placePins(x);
   if (!(g_norm <= g0) && g0 > 0.0) {
     // Far from the solution the line search may take ||g|| up while it
     // takes the incremental potential down (a stiff cloth's first
@@ -403,6 +418,15 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
     bh_ = bh;
   }
   return stats;
+}
+
+void Stepper::constraintImpulses(const Model& model, const VecX& x1, const VecX& v1, VecX* out) {
+  computeForces(model, x1, v1, f_);
+  out->resize(v1.size());
+  for (int i = 0; i < model.numNodes(); ++i) {
+    out->segment<3>(3 * i) = model.mass[i] * (v1.segment<3>(3 * i) - av_.segment<3>(3 * i)) -
+                             bh_ * f_.segment<3>(3 * i);
+  }
 }
 
 double Stepper::incrementalPotential(const Model& model, double bh, const VecX& av,
@@ -448,6 +472,20 @@ StepStats Stepper::symplecticEuler(const Model& model, double h, VecX& x, VecX& 
   }
   stats.assembly_s = secondsSince(t0);
   return stats;
+}
+
+bool Stepper::yieldsToContact(size_t k) const {
+  return contact_on_ && contact_.holds(pins_->nodes[k]) && pins_->direction(k).squaredNorm() > 0.0;
+}
+
+void Stepper::placePins(VecX& x) const {
+  for (size_t k = 0; k < pins_->nodes.size(); ++k) {  // exactly on target
+    if (yieldsToContact(k)) continue;
+    const int p = pins_->nodes[k];
+    const Vec3 n = pins_->direction(k);
+    const Vec3 gap = pins_->targets[k] - x.segment<3>(3 * p);
+    x.segment<3>(3 * p) += n.squaredNorm() > 0.0 ? Vec3(n * n.dot(gap)) : gap;
+  }
 }
 
 }  // namespace cloth_sim

@@ -103,11 +103,6 @@ class SelfHardCase : public testing::TestWithParam<SelfRun> {};
 
 TEST_P(SelfHardCase, NeverIntersects) {
   const SelfRun& run = GetParam();
-  // Known failure, not fixed (issue 14 notes): newton's step at t = 0.244 s
-  // keeps an energy jump of 5.7e-5 J after 8 halvings (the filter's elastic
-  // energy, 1/2 k dx^2 at the contact nodes). Branch issue14-splitting-allowance
-  // passes it but accepts per-step gains up to 0.03 J elsewhere.
-  if (run.file == "s1_heap.yaml" && run.method == Method::Newton) GTEST_SKIP() << "known failure";
   Outcome o;
   runCase(run, true, true, &o);
   if (HasFatalFailure()) return;
