@@ -235,8 +235,8 @@ class Simulation {
   std::vector<char> free_nodes_;  ///< reused by the error estimate
   PinnedEnds pin_ends_;  ///< reused per step
   PinnedEnds pin_ends_self_;  ///< pins plus the nodes the self-collision filter moved
-  /// Per node, in resolveSelfCollision: prescribed, where, and along which
-  /// unit direction (zero: whole).
+  /// Per node, in resolveSelfCollision: held, where, and along which unit
+  /// direction (the filter's first displacement of it).
   std::vector<char> self_held_;
   std::vector<Vec3> self_target_, self_direction_;
   /// Solves a step may take with self-collision: the first and re-solves

@@ -60,7 +60,7 @@ void Simulation::resolveSelfCollision(double h, const History& history, std::opt
   // layer's slide: 7 mm where 15 mm without the second solve, 45 mm
   // converged). Nodes a collider holds are left to their collider contact,
   // which owns their projection (held whole instead, they could not be let
-  // go: a heap on a table then rejected 100 steps for energy instead of 0).
+  // go, and a heap on a table rejected 100 steps for energy).
   const int n = model_.numNodes();
   self_held_.assign(n, 0);
   self_target_.resize(n);
