@@ -36,6 +36,19 @@ void requireFiniteVec(const Vec3& value, const std::string& path);
 void requireFraction(double value, const std::string& path);  ///< in (0, 1)
 void requireAtLeast(long long value, long long minimum, const std::string& path);
 
+std::vector<int> readIndices(const YAML::Node& node, const std::string& path);
+/// index in [0, num_nodes)
+void requireNode(int index, int num_nodes, const std::string& path);
+/// Node indices of a pin list: in range, each once, at least one if non_empty.
+void requireNodeList(const std::vector<int>& indices, int num_nodes, const std::string& path,
+                     bool non_empty);
+
+// scene_events.cpp
+/// One entry of `events` (its time and exactly one action).
+SceneEvent readEvent(const YAML::Node& node, const std::string& path);
+/// Every event: times in order, each action's fields valid for the scene.
+void validateEvents(const Scene& scene);
+
 // scene_solver.cpp
 /// Reads `solver` (absent: the defaults).
 void readSolver(const YAML::Node& node, Scene::Solver* solver);
