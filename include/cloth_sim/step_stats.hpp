@@ -68,6 +68,20 @@ struct StepStats {
   int self_solves = 0;
   bool ok = true;             ///< false: the step failed and the state was rolled back
   std::string failure;        ///< why, when !ok (or what recovery fixed)
+
+  /// Adds the effort `part` spent (iterations, times, contact passes,
+  /// self-collision solves) to this step's: for a step whose answer was
+  /// replaced (taken back, or solved again) but whose work counts.
+  void addWork(const StepStats& part) {
+    cg_iterations += part.cg_iterations;
+    newton_iterations += part.newton_iterations;
+    wall_time_s += part.wall_time_s;
+    assembly_s += part.assembly_s;
+    solve_s += part.solve_s;
+    contact_passes += part.contact_passes;
+    self_collision_s += part.self_collision_s;
+    self_solves += part.self_solves;
+  }
 };
 
 }  // namespace cloth_sim

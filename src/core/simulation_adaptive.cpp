@@ -109,11 +109,7 @@ StepStats Simulation::stepToward(double t_limit) {
     restoreCheckpoint();
     --step_count_;
     ++total.error_rejected;
-    total.cg_iterations += part.cg_iterations;  // the work was spent all the same
-    total.newton_iterations += part.newton_iterations;
-    total.wall_time_s += part.wall_time_s;
-    total.assembly_s += part.assembly_s;
-    total.solve_s += part.solve_s;
+    total.addWork(part);  // the work was spent all the same
   }
 }
 

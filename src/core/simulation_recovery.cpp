@@ -22,15 +22,11 @@ constexpr int kMovingPinIterations = 4;
 }  // namespace
 
 void Simulation::accumulate(const StepStats& part, StepStats* total) const {
-  total->cg_iterations += part.cg_iterations;
-  total->newton_iterations += part.newton_iterations;
+  total->addWork(part);
   total->residual = std::max(total->residual, part.residual);
   total->newton_residual = std::max(total->newton_residual, part.newton_residual);
   total->linear_converged = total->linear_converged && part.linear_converged;
   total->newton_converged = total->newton_converged && part.newton_converged;
-  total->wall_time_s += part.wall_time_s;
-  total->assembly_s += part.assembly_s;
-  total->solve_s += part.solve_s;
   total->work_in += part.work_in;
   total->substeps += part.substeps;
   total->rejected += part.rejected;
@@ -42,7 +38,6 @@ void Simulation::accumulate(const StepStats& part, StepStats* total) const {
   total->linearized += part.linearized;
   total->order_reduced += part.order_reduced;
   total->refined += part.refined;
-  total->contact_passes += part.contact_passes;
   total->contact_work += part.contact_work;
   // The contact figures of the last sub-step are those at the end of the step.
   total->contacts = part.contacts;
@@ -50,8 +45,6 @@ void Simulation::accumulate(const StepStats& part, StepStats* total) const {
   total->max_penetration = std::max(total->max_penetration, part.max_penetration);
   total->self_contacts = part.self_contacts;
   total->min_self_distance = std::min(total->min_self_distance, part.min_self_distance);
-  total->self_collision_s += part.self_collision_s;
-  total->self_solves += part.self_solves;
   total->ok = total->ok && part.ok;
   if (!part.failure.empty()) total->failure = part.failure;
 }

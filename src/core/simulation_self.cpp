@@ -126,20 +126,15 @@ void Simulation::resolveSelfCollision(double h, const History& history, std::opt
     v_ = v_save_;
     const StepStats again =
         stepper_.step(model_, h, pin_ends_self_, history, x_, v_, as, collider_step_);
-    stats->cg_iterations += again.cg_iterations;
-    stats->newton_iterations += again.newton_iterations;
+    stats->addWork(again);
     stats->residual = std::max(stats->residual, again.residual);
     stats->newton_residual = again.newton_residual;
     stats->linear_converged = stats->linear_converged && again.linear_converged;
     stats->newton_converged = again.newton_converged;
-    stats->assembly_s += again.assembly_s;
-    stats->solve_s += again.solve_s;
-    stats->wall_time_s += again.wall_time_s;
     stats->contacts = again.contacts;
     stats->contact_normal_force = again.contact_normal_force;
     stats->max_penetration = again.max_penetration;
     stats->contact_work = again.contact_work;
-    stats->contact_passes += again.contact_passes;
     ++stats->self_solves;
     if (!again.ok) {
       stats->ok = false;
