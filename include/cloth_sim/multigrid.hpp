@@ -83,6 +83,24 @@ struct SymBlock {
     return {v[0] * x[0] + v[3] * x[1] + v[4] * x[2], v[3] * x[0] + v[1] * x[1] + v[5] * x[2],
             v[4] * x[0] + v[5] * x[1] + v[2] * x[2]};
   }
+  /// y = B x on raw 3-vectors (y may alias x); the same operations as operator*.
+  void multiply(const double* x, double* y) const {
+    const double y0 = v[0] * x[0] + v[3] * x[1] + v[4] * x[2];
+    const double y1 = v[3] * x[0] + v[1] * x[1] + v[5] * x[2];
+    const double y2 = v[4] * x[0] + v[5] * x[1] + v[2] * x[2];
+    y[0] = y0;
+    y[1] = y1;
+    y[2] = y2;
+  }
+  /// y -= B x on raw 3-vectors (y must not alias x).
+  void subtractProduct(const double* x, double* y) const {
+    const double y0 = v[0] * x[0] + v[3] * x[1] + v[4] * x[2];
+    const double y1 = v[3] * x[0] + v[1] * x[1] + v[5] * x[2];
+    const double y2 = v[4] * x[0] + v[5] * x[1] + v[2] * x[2];
+    y[0] -= y0;
+    y[1] -= y1;
+    y[2] -= y2;
+  }
   double trace() const { return v[0] + v[1] + v[2]; }
   /// The inverse by cofactors (symmetric too); non-finite if singular.
   SymBlock inverse() const {

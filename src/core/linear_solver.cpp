@@ -211,11 +211,14 @@ void applyPreconditioner(Preconditioner kind, CgWorkspace& ws, const ConstraintF
     return;
   }
   const int n = static_cast<int>(ws.inv_diag.size());
-  for (int i = 0; i < n; ++i) {
+  const SymBlock* inv = ws.inv_diag.data();
+  const double* rp = r.data();
+  double* zp = z.data();
+  for (int i = 0; i < n; ++i) {  // raw 3-vectors: no Eigen temporaries
     if (free[i]) {
-      z.segment<3>(3 * i) = ws.inv_diag[i] * Vec3(r.segment<3>(3 * i));
+      inv[i].multiply(rp + 3 * i, zp + 3 * i);
     } else {
-      z.segment<3>(3 * i).setZero();
+      zp[3 * i] = zp[3 * i + 1] = zp[3 * i + 2] = 0.0;
     }
   }
   filter.applyProjections(z);

@@ -485,13 +485,18 @@ void MultigridPreconditioner::vcycle(int l) {
   // Forward Gauss-Seidel from x = 0. Row i's equation then holds exactly with
   // the new x_j (j < i) and x_j = 0 (j > i), so the residual is
   // r_i = -sum_{j > i} A_ij x_j: gathered from later rows as they are solved.
+  // Raw pointers and SymBlock's pointer kernels: the Vec3 temporaries of
+  // the Eigen form cost about a tenth of the sweep (same results, bit for bit).
   r.setZero();
+  double* xp = x.data();
+  double* rp = r.data();
+  const double* bp = level.b.data();
+  const SymBlock* inv = level.inv_node_block.data();
   for (int i = 0; i < n; ++i) {
-    Vec3 s = level.b.segment<3>(3 * i);
-    for (int k = begin[i]; k < begin[i + 1]; ++k) s -= L[k] * x.segment<3>(3 * column[k]);
-    const Vec3 xi = level.inv_node_block[i] * s;
-    x.segment<3>(3 * i) = xi;
-    for (int k = begin[i]; k < begin[i + 1]; ++k) r.segment<3>(3 * column[k]) -= L[k] * xi;
+    double s[3] = {bp[3 * i], bp[3 * i + 1], bp[3 * i + 2]};
+    for (int k = begin[i]; k < begin[i + 1]; ++k) L[k].subtractProduct(xp + 3 * column[k], s);
+    inv[i].multiply(s, xp + 3 * i);
+    for (int k = begin[i]; k < begin[i + 1]; ++k) L[k].subtractProduct(xp + 3 * i, rp + 3 * column[k]);
   }
 
   // Coarse correction: x += P A_c^-1 P^T r (A_c^-1 by the next V-cycle).
@@ -514,11 +519,10 @@ void MultigridPreconditioner::vcycle(int l) {
   // each row is solved, the old x_j (j < i) are gathered.
   r.setZero();
   for (int i = n - 1; i >= 0; --i) {
-    Vec3 s = level.b.segment<3>(3 * i) + r.segment<3>(3 * i);
-    for (int k = begin[i]; k < begin[i + 1]; ++k) s -= L[k] * x.segment<3>(3 * column[k]);
-    const Vec3 xi = level.inv_node_block[i] * s;
-    x.segment<3>(3 * i) = xi;
-    for (int k = begin[i]; k < begin[i + 1]; ++k) r.segment<3>(3 * column[k]) -= L[k] * xi;
+    double s[3] = {bp[3 * i] + rp[3 * i], bp[3 * i + 1] + rp[3 * i + 1], bp[3 * i + 2] + rp[3 * i + 2]};
+    for (int k = begin[i]; k < begin[i + 1]; ++k) L[k].subtractProduct(xp + 3 * column[k], s);
+    inv[i].multiply(s, xp + 3 * i);
+    for (int k = begin[i]; k < begin[i + 1]; ++k) L[k].subtractProduct(xp + 3 * i, rp + 3 * column[k]);
   }
 }
 
