@@ -14,7 +14,6 @@
 #include <Eigen/Sparse>
 #include <Eigen/SparseCholesky>
 #include <array>
-#include <limits>
 #include <memory>
 #include <vector>
 
@@ -172,72 +171,60 @@ struct CgWorkspace {
 double autoStiffness(const Model& model, double h);
 
 /// What `auto` runs for a step of size h (docs/scene.md gives the measurements):
-/// - block_jacobi on small soft cloths (at most kAutoJacobiNodes nodes and
-///   kappa <= kAutoJacobiKappa, or any cloth at kappa <= kAutoTinyKappa): a
-///   few cheap iterations, where a multigrid hierarchy costs more to build
-///   than it saves (the seed scene, 16 x 16 at kappa 0.04-17: 0.05 ms a
-///   step against 0.10-0.27);
-/// - multigrid otherwise: its iterations barely grow with resolution or
-///   stiffness (bdf2, CG to 1e-3, falling cloth at dt 1/180: 20 x 20 at
-///   stretch 1e2..1e6 0.26-1.6 ms a step against block Jacobi's 0.38-1.8 and
-///   Cholesky's 1.2-4.3; 48 x 48: 1.5-6.0 against 3.3-21 and 16-56);
-/// - a multigrid solve past kAutoMultigridIterations (very stiff cloth at
-///   small steps: 90-160 iterations at stretch 1e8, dt 1/180) goes on with
-///   cholesky up to kAutoCholeskyNodes nodes: a factor solves at any
-///   stiffness in a few iterations; beyond that size multigrid stays.
+/// - block_jacobi while kappa <= jacobi_limit: there CG usually converges in
+///   a few hundred cheap iterations, cheaper than a factorization (the 24 x 24
+///   demo, dt 1/120, CG to 1e-4: block Jacobi 1.5 ms a step at kappa 2700,
+///   3.1 ms at 26000; cholesky 4.3 and 8.4). kappa alone does not say when block
+///   Jacobi stops paying (a falling flat 20 x 20 cloth, CG to 1e-6, needed
+///   thousands of iterations at kappa 3750): AutoPreconditioner watches the
+///   iterations and lowers the limit;
+/// - cholesky up to kAutoCholeskyNodes nodes when stiffer: a factor of the
+///   whole matrix solves at any stiffness in a few iterations;
+/// - multigrid beyond (the factorization's fill grows faster than the grid).
 /// AutoPreconditioner (below) makes the choice; any other request is kept.
-/// The first try for this model at this kappa.
-Preconditioner firstPreconditioner(const Model& model, double kappa);
-/// What a first try that did not converge in time goes on with: cholesky up
-/// to kAutoCholeskyNodes nodes, multigrid beyond.
+/// A stiffer one than block Jacobi for this model: cholesky up to
+/// kAutoCholeskyNodes nodes, multigrid beyond.
 Preconditioner strongerPreconditioner(const Model& model);
-constexpr double kAutoTinyKappa = 2.0;
-constexpr double kAutoJacobiKappa = 50.0;
-constexpr int kAutoJacobiNodes = 256;
-/// A first-try solve that has not converged after this many iterations goes
-/// on with the stronger preconditioner (block Jacobi: about where a cholesky
-/// solve costs less, 300 iterations on the 20 x 20 and 24 x 24 cloths;
-/// multigrid: where the factor's few iterations pay for its cost).
+/// Above this kappa `auto` does not try block Jacobi at all (the demo at
+/// stretch 1e6, kappa 5e5: thousands of iterations; at 5e4 stretch, kappa
+/// 26000, still 220 and cheaper than the factor).
+constexpr double kAutoJacobiLimit = 5.0e4;
+/// A block-Jacobi solve that has not converged after this many iterations
+/// goes on with the stronger preconditioner (about where a cholesky solve
+/// costs less: 300 block-Jacobi iterations on the 20 x 20 and 24 x 24 cloths).
 constexpr int kAutoJacobiIterations = 400;
-constexpr int kAutoMultigridIterations = 100;
 constexpr int kAutoCholeskyNodes = 4096;
-/// The iteration cap of a first try with `chosen` (0: not a trial, nothing
-/// stronger to go on with).
-int autoTrialIterations(const Model& model, Preconditioner chosen);
 
-/// `auto` across steps. A first-try solve that runs past its trial cap
-/// (autoTrialIterations) goes on with the stronger preconditioner (no step
-/// is rejected for the guess). After kAutoEscalations attempts in a row did
-/// so, the stronger one is used from the start for every step at least half
-/// that stiff (kappa), and the first try is made again after
-/// kAutoReprobeAttempts attempts, or on a cloth made much softer. One long
-/// solve alone does not move the limit: the flooded demo node (pins grasped
-/// and released 200 times a second) has such solves now and then, and a
-/// limit lowered by them put it on the factor and its marker rate fell to 53
-/// of 60 Hz.
+/// `auto` across steps: block Jacobi where it pays. A block-Jacobi solve
+/// that runs past kAutoJacobiIterations goes on with the stronger
+/// preconditioner (no step is rejected for the guess). After
+/// kAutoEscalations attempts in a row did so, the stronger one is used from
+/// the start for every step at least half that stiff (kappa), and block
+/// Jacobi is tried again after kAutoReprobeAttempts attempts, or on a cloth
+/// made much softer. One long solve alone does not move the limit: the
+/// flooded demo node (pins grasped and released 200 times a second) has
+/// such solves now and then, and a limit lowered by them put it on the
+/// factor and its marker rate fell to 53 of 60 Hz.
 class AutoPreconditioner {
  public:
-  static constexpr int kAutoEscalations = 3;
-  static constexpr int kAutoReprobeAttempts = 200;
-  static constexpr double kNoLimit = std::numeric_limits<double>::infinity();
-
   /// This attempt's preconditioner (`requested` as it is unless Auto).
   Preconditioner choose(Preconditioner requested, const Model& model, double h);
-  /// The first try of this attempt did not converge in time: returns the
-  /// stronger preconditioner.
+  /// A block-Jacobi solve of this attempt did not converge in time: returns
+  /// the stronger preconditioner.
   Preconditioner escalate(const Model& model);
   /// Forgets what was learnt (a new scene).
   void reset() {
-    first_try_limit_ = kNoLimit;
+    jacobi_limit_ = kAutoJacobiLimit;
     streak_ = 0;
   }
-  /// kappa above which the stronger preconditioner is used from the start.
-  double firstTryLimit() const { return first_try_limit_; }
+  double jacobiLimit() const { return jacobi_limit_; }
+  static constexpr int kAutoEscalations = 3;
+  static constexpr int kAutoReprobeAttempts = 200;
 
  private:
-  double first_try_limit_ = kNoLimit;
+  double jacobi_limit_ = kAutoJacobiLimit;
   double kappa_ = 0.0;      ///< of the attempt being solved
-  bool trial_ = false;      ///< the attempt being solved started with a first try
+  bool jacobi_ = false;     ///< the attempt being solved started with block Jacobi
   bool escalated_ = false;  ///< ... and escalated
   int streak_ = 0;          ///< attempts in a row that escalated
   int since_lowered_ = 0;   ///< attempts since the limit was lowered

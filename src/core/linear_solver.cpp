@@ -236,40 +236,27 @@ double autoStiffness(const Model& model, double h) {
   return h * stiffest / lightest;
 }
 
-Preconditioner firstPreconditioner(const Model& model, double kappa) {
-  const bool small_soft = model.numNodes() <= kAutoJacobiNodes && kappa <= kAutoJacobiKappa;
-  return small_soft || kappa <= kAutoTinyKappa ? Preconditioner::BlockJacobi
-                                               : Preconditioner::Multigrid;
-}
-
 Preconditioner strongerPreconditioner(const Model& model) {
   return model.numNodes() <= kAutoCholeskyNodes ? Preconditioner::Cholesky
                                                 : Preconditioner::Multigrid;
 }
 
-int autoTrialIterations(const Model& model, Preconditioner chosen) {
-  if (chosen == strongerPreconditioner(model)) return 0;
-  if (chosen == Preconditioner::BlockJacobi) return kAutoJacobiIterations;
-  if (chosen == Preconditioner::Multigrid) return kAutoMultigridIterations;
-  return 0;
-}
-
 Preconditioner AutoPreconditioner::choose(Preconditioner requested, const Model& model,
                                           double h) {
   if (requested != Preconditioner::Auto) return requested;
-  if (trial_) streak_ = escalated_ ? streak_ + 1 : 0;  // the last attempt's verdict
+  if (jacobi_) streak_ = escalated_ ? streak_ + 1 : 0;  // the last attempt's verdict
   if (streak_ >= kAutoEscalations) {
-    first_try_limit_ = std::min(first_try_limit_, 0.5 * kappa_);
+    jacobi_limit_ = std::min(jacobi_limit_, 0.5 * kappa_);
     streak_ = 0;
     since_lowered_ = 0;
-  } else if (first_try_limit_ < kNoLimit && ++since_lowered_ > kAutoReprobeAttempts) {
-    first_try_limit_ = kNoLimit;  // make the first try again
+  } else if (jacobi_limit_ < kAutoJacobiLimit && ++since_lowered_ > kAutoReprobeAttempts) {
+    jacobi_limit_ = kAutoJacobiLimit;  // try block Jacobi again
   }
   kappa_ = autoStiffness(model, h);
   escalated_ = false;
-  const Preconditioner chosen = kappa_ <= first_try_limit_ ? firstPreconditioner(model, kappa_)
-                                                           : strongerPreconditioner(model);
-  trial_ = autoTrialIterations(model, chosen) > 0;
+  const Preconditioner chosen =
+      kappa_ <= jacobi_limit_ ? Preconditioner::BlockJacobi : strongerPreconditioner(model);
+  jacobi_ = chosen == Preconditioner::BlockJacobi;
   return chosen;
 }
 

@@ -22,15 +22,14 @@ double secondsSince(Clock::time_point start) {
 
 CgResult Stepper::solveLinear(const Model& model, const VecX& b, VecX& x, double tolerance) {
   if (!(tolerance > 0.0)) tolerance = settings_.tolerance;
-  const int trial_cap = settings_.preconditioner == Preconditioner::Auto
-                            ? autoTrialIterations(model, preconditioner_)
-                            : 0;
-  const bool trial = trial_cap > 0;
-  const int cap = trial ? std::min(settings_.max_iterations, trial_cap) : settings_.max_iterations;
+  const bool trial = settings_.preconditioner == Preconditioner::Auto &&
+                     preconditioner_ == Preconditioner::BlockJacobi;
+  const int cap = trial ? std::min(settings_.max_iterations, kAutoJacobiIterations)
+                        : settings_.max_iterations;
   CgResult cg = conjugateGradient(A_, model.springs, filter_, b, x, preconditioner_,
                                   tolerance, cap, cg_);
   if (!trial || cg.converged) return cg;
-  // `auto`'s first try does not pay: on with the stronger one from where it got to.
+  // `auto` guessed block Jacobi and it does not pay: on from where it got to.
   preconditioner_ = auto_.escalate(model);
   const int spent = cg.iterations;
   cg = conjugateGradient(A_, model.springs, filter_, b, x, preconditioner_, tolerance,

@@ -246,7 +246,6 @@ TEST(Multigrid, EveryImplicitStepperFollowsBlockJacobi) {
     s.solver.dt = 1.0 / 120;
     s.solver.tolerance = 1e-10;
     s.solver.newton_tolerance = 1e-9;
-    s.solver.preconditioner = Preconditioner::BlockJacobi;
     Scene s_mg = s;
     s_mg.solver.preconditioner = Preconditioner::Multigrid;
     Simulation bj(s), mg(s_mg);
