@@ -80,26 +80,31 @@ struct SymBlock {
     return m;
   }
   Vec3 operator*(const Vec3& x) const {
-    return {v[0] * x[0] + v[3] * x[1] + v[4] * x[2], v[3] * x[0] + v[1] * x[1] + v[5] * x[2],
-            v[4] * x[0] + v[5] * x[1] + v[2] * x[2]};
+    Vec3 y;
+    multiply(x.data(), y.data());
+    return y;
   }
-  /// y = B x on raw 3-vectors (y may alias x); the same operations as operator*.
+  /// y = B x on raw 3-vectors (y may alias x).
   void multiply(const double* x, double* y) const {
-    const double y0 = v[0] * x[0] + v[3] * x[1] + v[4] * x[2];
-    const double y1 = v[3] * x[0] + v[1] * x[1] + v[5] * x[2];
-    const double y2 = v[4] * x[0] + v[5] * x[1] + v[2] * x[2];
-    y[0] = y0;
-    y[1] = y1;
-    y[2] = y2;
+    double p[3];
+    product(x, p);
+    y[0] = p[0];
+    y[1] = p[1];
+    y[2] = p[2];
   }
   /// y -= B x on raw 3-vectors (y must not alias x).
   void subtractProduct(const double* x, double* y) const {
-    const double y0 = v[0] * x[0] + v[3] * x[1] + v[4] * x[2];
-    const double y1 = v[3] * x[0] + v[1] * x[1] + v[5] * x[2];
-    const double y2 = v[4] * x[0] + v[5] * x[1] + v[2] * x[2];
-    y[0] -= y0;
-    y[1] -= y1;
-    y[2] -= y2;
+    double p[3];
+    product(x, p);
+    y[0] -= p[0];
+    y[1] -= p[1];
+    y[2] -= p[2];
+  }
+  /// p = B x: the one place the product is written out.
+  void product(const double* x, double* p) const {
+    p[0] = v[0] * x[0] + v[3] * x[1] + v[4] * x[2];
+    p[1] = v[3] * x[0] + v[1] * x[1] + v[5] * x[2];
+    p[2] = v[4] * x[0] + v[5] * x[1] + v[2] * x[2];
   }
   double trace() const { return v[0] + v[1] + v[2]; }
   /// The inverse by cofactors (symmetric too); non-finite if singular.

@@ -492,11 +492,16 @@ void MultigridPreconditioner::vcycle(int l) {
   double* rp = r.data();
   const double* bp = level.b.data();
   const SymBlock* inv = level.inv_node_block.data();
-  for (int i = 0; i < n; ++i) {
-    double s[3] = {bp[3 * i], bp[3 * i + 1], bp[3 * i + 2]};
+  // Row i solved from s (its right-hand side so far); x_i's coupling to the
+  // rows of its lower-triangle entries scattered into r (both sweeps).
+  auto relaxRow = [&](int i, double* s) {
     for (int k = begin[i]; k < begin[i + 1]; ++k) L[k].subtractProduct(xp + 3 * column[k], s);
     inv[i].multiply(s, xp + 3 * i);
     for (int k = begin[i]; k < begin[i + 1]; ++k) L[k].subtractProduct(xp + 3 * i, rp + 3 * column[k]);
+  };
+  for (int i = 0; i < n; ++i) {
+    double s[3] = {bp[3 * i], bp[3 * i + 1], bp[3 * i + 2]};
+    relaxRow(i, s);
   }
 
   // Coarse correction: x += P A_c^-1 P^T r (A_c^-1 by the next V-cycle).
@@ -520,9 +525,7 @@ void MultigridPreconditioner::vcycle(int l) {
   r.setZero();
   for (int i = n - 1; i >= 0; --i) {
     double s[3] = {bp[3 * i] + rp[3 * i], bp[3 * i + 1] + rp[3 * i + 1], bp[3 * i + 2] + rp[3 * i + 2]};
-    for (int k = begin[i]; k < begin[i + 1]; ++k) L[k].subtractProduct(xp + 3 * column[k], s);
-    inv[i].multiply(s, xp + 3 * i);
-    for (int k = begin[i]; k < begin[i + 1]; ++k) L[k].subtractProduct(xp + 3 * i, rp + 3 * column[k]);
+    relaxRow(i, s);
   }
 }
 
