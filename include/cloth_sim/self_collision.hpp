@@ -3,7 +3,8 @@
 // Harmon et al. 2008's fail-safe:
 //  1. proximity: pairs closer than the thickness at x1 get an inelastic
 //     normal impulse (the approach is stopped, up to the thickness) and
-//     Coulomb friction (tangential impulse at most mu times the normal one);
+//     Coulomb friction (tangential impulse at most mu times the normal one),
+//     found together by projected Gauss-Seidel sweeps (pairs share nodes);
 //  2. a few rounds of CCD: each pair that would come closer than a minimum
 //     separation along the linear motion gets an inelastic impulse at its
 //     time of impact;
@@ -15,7 +16,7 @@
 // Impulses act on positions (x1 moves by w_i / m_i J n) and change each
 // moved node's velocity by its displacement over h: inelastic, no bounce.
 // Pinned nodes have infinite mass (their work through the filter is
-// reported), nodes on a collider infinite mass along its normal only.
+// reported), nodes on a collider infinite mass against moves into it only.
 #pragma once
 
 #include <limits>
@@ -55,7 +56,8 @@ struct SelfCollisionMasses {
   std::vector<int> fixed;  ///< pinned: infinite mass, their x1 is prescribed
   std::vector<int> heavy;  ///< held by a collider contact
   /// per `heavy` entry: its surface normal (a node then has infinite mass
-  /// along it and its own mass across it), or zero (infinite mass: wedged)
+  /// against impulses into the surface and its own mass otherwise), or
+  /// zero (infinite mass: wedged)
   std::vector<Vec3> heavy_normal;
 };
 
@@ -64,8 +66,9 @@ struct CollidersOverStep;
 
 /// The masses for a step ending at x1: the pinned nodes fixed; the nodes the
 /// contact solve holds, and every node within `reach` of the thickness band
-/// of a collider at x1, held along that surface's normal (wedged if two).
-/// Sliding across the normal cannot take a node into a convex collider.
+/// of a collider at x1, held against moves into that surface (wedged if
+/// two). Sliding across the normal or moving away from the surface cannot
+/// take a node into a convex collider.
 void selfCollisionMasses(const std::vector<int>& pinned, const ContactSet& contacts,
                          const CollidersOverStep& colliders, const VecX& x1, double reach,
                          SelfCollisionMasses* out);
@@ -109,15 +112,23 @@ class SelfCollision {
     Vec3 n;           ///< unit normal: the closest points' direction where measured
     double distance;  ///< where measured
     double target;    ///< end gap along n the impulse restores (if larger)
+    /// impulses applied so far (displacement units times mass): normal,
+    /// >= 0, and friction, across n, at most `friction_` times the normal
+    double normal_impulse = 0.0;
+    Vec3 friction_impulse = Vec3::Zero();
   };
   /// The pair's nodes, closest-point weights, normal and distance at the
   /// four positions `at` (ordered as nodesOf).
   void makePair(int kind, int a, int b, const std::array<Vec3, 4>& at, Pair* pair) const;
   void gather(const std::array<int, 4>& nodes, const VecX& x, std::array<Vec3, 4>* out) const;
   std::array<int, 4> nodesOf(int kind, int a, int b) const;
-  /// Applies pair's inelastic normal impulse and friction to x1.
-  /// Adds the work of pinned nodes of the pair, times h^2, to pin_work.
-  bool impulse(const Pair& pair, const VecX& x0, VecX& x1, double* pin_work) const;
+  /// Brings pair's accumulated impulses to what x1 now needs (one projected
+  /// Gauss-Seidel update: the normal one restores the gap to the target and
+  /// may shrink, never below zero; friction stops the slip within the cone)
+  /// and applies the change to x1. Returns the change of the pair's gap
+  /// (0: nothing to do). Adds the work of pinned nodes of the pair, times
+  /// h^2, to pin_work.
+  double impulse(Pair& pair, const VecX& x0, VecX& x1, double* pin_work) const;
   /// CCD of every candidate pair not inside one zone; fills hits_.
   void detect(const VecX& x0, const VecX& x1, bool skip_zones);
   /// Moves each zone rigidly; false (with `failure`) if a zone cannot move.
@@ -135,7 +146,11 @@ class SelfCollision {
   std::vector<double> mass_, inv_mass_;  ///< inv_mass_ 0: pinned or wedged
   std::vector<Vec3> normal_;      ///< a contact's surface normal, else zero
   /// Displacement of node i when an impulse of dx (displacement units times
-  /// mass) acts on it with weight w: w / m dx, less its part along normal_.
+  /// mass) acts on it with weight w: w / m dx, less any part into the
+  /// surface of normal_. One-sided: a node near a collider is a wall only
+  /// against impulses that push it in; pushed away it moves with its own
+  /// mass (held both ways, a layer falling onto one on a table threw its
+  /// other nodes by the whole gap: fold.yaml, energy jump, issue 14).
   Vec3 nodeShare(int i, double w, const Vec3& dx) const;
   std::vector<int> parent_;  ///< zone union-find (a node alone is its own root)
   std::vector<char> in_zone_;

@@ -11,10 +11,10 @@ namespace cloth_sim {
 namespace {
 
 /// Nodes within this many self-collision thicknesses of a collider's band
-/// are held along its normal by the self-collision filter, as well as those
-/// in contact. Not more: a node held so is a wall the impulses cannot move,
-/// which does work where it moves along the normal (a falling layer above).
-/// A free node pushed into a collider anyway fails the step (halved).
+/// are held against moves into it by the self-collision filter, as well as
+/// those in contact. Not more: a held node is a wall for impulses pushing
+/// it in, which does work where it moves along the normal. A free node
+/// pushed into a collider anyway fails the step (halved).
 constexpr double kSelfReach = 0.5;
 
 /// Filter moves below this many thicknesses do not call for another solve

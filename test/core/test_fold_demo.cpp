@@ -14,8 +14,15 @@
 namespace cloth_sim {
 namespace {
 
-TEST(FoldDemo, TowelEndsFoldedInTwoLayersWithoutIntersecting) {
-  const Scene scene = loadScene(std::string(CLOTH_SIM_SOURCE_DIR) + "/config/scenes/fold.yaml");
+/// The solver tolerance the scene is run at: as shipped, and a hair off it,
+/// which changes only round-off. (At 1.0002e-4 a layer falling onto the one
+/// on the table, its nodes held two-sidedly by the table, threw its free
+/// nodes by the whole gap: an energy jump halving did not shrink, t = 2.64 s.)
+class FoldDemo : public testing::TestWithParam<double> {};
+
+TEST_P(FoldDemo, TowelEndsFoldedInTwoLayersWithoutIntersecting) {
+  Scene scene = loadScene(std::string(CLOTH_SIM_SOURCE_DIR) + "/config/scenes/fold.yaml");
+  scene.solver.tolerance = GetParam();
   Simulation sim(scene);
   const double table_top = 0.75;  // the box's top (fold.yaml)
   const long steps = std::lround(4.0 / scene.solver.dt);  // the corners let go at 2.4 s
@@ -51,6 +58,11 @@ TEST(FoldDemo, TowelEndsFoldedInTwoLayersWithoutIntersecting) {
               std::hypot((sim.position(399) - sim.position(19)).x(), (sim.position(399) - sim.position(19)).y()),
               sim.minSelfDistance());
 }
+
+INSTANTIATE_TEST_SUITE_P(Tolerances, FoldDemo, testing::Values(1.0e-4, 1.0002e-4),
+                         [](const testing::TestParamInfo<double>& info) {
+                           return info.index == 0 ? std::string("as_shipped") : std::string("perturbed");
+                         });
 
 }  // namespace
 }  // namespace cloth_sim
