@@ -82,8 +82,8 @@ void Simulation::resolveSelfCollision(double h, const History& history, std::opt
     }
     return false;
   };
-  std::vector<char> is_pin(n, 0);
-  for (int node : pin_ends_.nodes) is_pin[node] = 1;
+  self_pinned_.assign(n, 0);
+  for (int node : pin_ends_.nodes) self_pinned_[node] = 1;
   for (int solve = 1; solve < kSelfSolves && stats->ok; ++solve) {
     bool changed = false;
     // A prescribed node whose constraint pulls it back (its reaction points
@@ -98,14 +98,14 @@ void Simulation::resolveSelfCollision(double h, const History& history, std::opt
         }
       }
     }
-    std::vector<char> heavy(n, 0);
-    for (int node : self_masses_.heavy) heavy[node] = 1;
+    self_heavy_.assign(n, 0);
+    for (int node : self_masses_.heavy) self_heavy_[node] = 1;
     for (int i = 0; i < n; ++i) {
-      if (is_pin[i]) continue;
+      if (self_pinned_[i]) continue;
       const Vec3 moved = x_.segment<3>(3 * i);
       const Vec3 shift = moved - x_pre_self_.segment<3>(3 * i);
       if (shift.squaredNorm() == 0.0) continue;
-      if (heavy[i] || nearCollider(i)) continue;
+      if (self_heavy_[i] || nearCollider(i)) continue;
       if (shift.norm() > kSettledShift * scene_.self_collision.thickness) changed = true;
       if (!self_held_[i]) {
         self_held_[i] = 1;

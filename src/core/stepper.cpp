@@ -194,9 +194,9 @@ StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v)
     contact_.addFrictionJacobian(A_, h);
   }
   for (size_t k = 0; k < pins_->nodes.size(); ++k) {
+    if (yieldsToContact(k)) continue;
     const int p = pins_->nodes[k];
     Vec3 dv = (pins_->targets[k] - x.segment<3>(3 * p)) / h - v.segment<3>(3 * p);
-    if (yieldsToContact(k)) continue;
     const Vec3 n = pins_->direction(k);
     if (n.squaredNorm() > 0.0) dv = n * n.dot(dv);  // the rest is solved for
     pinned_dv_.segment<3>(3 * p) = dv;
