@@ -62,6 +62,28 @@ void setTrianglePoints(const cloth_sim::Model& model, const cloth_sim::VecX& pos
   }
 }
 
+void setUndersidePoints(const cloth_sim::Model& model, const cloth_sim::VecX& positions,
+                        visualization_msgs::Marker* marker) {
+  const size_t count = 3 * model.triangles.size();
+  if (marker->points.size() != count) marker->points.resize(count);
+  size_t k = 0;
+  for (const Eigen::Vector3i& tri : model.triangles) {
+    const cloth_sim::Vec3 a = positions.segment<3>(3 * tri[0]);
+    const cloth_sim::Vec3 b = positions.segment<3>(3 * tri[1]);
+    const cloth_sim::Vec3 c = positions.segment<3>(3 * tri[2]);
+    const cloth_sim::Vec3 normal = (b - a).cross(c - a);
+    const double area2 = normal.norm();
+    const cloth_sim::Vec3 shift =
+        area2 > 0.0 ? cloth_sim::Vec3(normal * (-kUndersideOffset / area2)) : cloth_sim::Vec3::Zero();
+    for (const cloth_sim::Vec3* corner : {&a, &c, &b}) {  // the other way round
+      geometry_msgs::Point& p = marker->points[k++];
+      p.x = (*corner)[0] + shift[0];
+      p.y = (*corner)[1] + shift[1];
+      p.z = (*corner)[2] + shift[2];
+    }
+  }
+}
+
 std_msgs::ColorRGBA strainColor(double strain) {
   double s = std::isfinite(strain) ? strain / kFullStrainColor : 1.0;
   s = std::min(1.0, std::max(0.0, s));

@@ -49,6 +49,21 @@ visualization_msgs::Marker triangleMarker(const std::string& frame_id, const std
 void setTrianglePoints(const cloth_sim::Model& model, const cloth_sim::VecX& positions,
                        visualization_msgs::Marker* marker);
 
+/// RViz lights a TRIANGLE_LIST on its front side only (the winding's
+/// normal): seen from the back, the cloth is black (a folded towel's upper
+/// layer, upside down, showed as a black sheet). The underside marker is
+/// each triangle wound the other way and moved this far along its back
+/// normal, so from either side the face that is nearer is lit. Well below a
+/// self-collision thickness (layers rest ~2 mm apart), above RViz's depth
+/// resolution at a few metres (~0.05 mm).
+constexpr double kUndersideOffset = 5e-4;  // m
+
+/// Writes the model's triangles, wound the other way and each moved
+/// kUndersideOffset along its back normal, into marker->points (as many
+/// points as setTrianglePoints; a degenerate triangle is not moved).
+void setUndersidePoints(const cloth_sim::Model& model, const cloth_sim::VecX& positions,
+                        visualization_msgs::Marker* marker);
+
 /// Strain colour: blue at rest length (or compressed), red at 10% stretch or more.
 std_msgs::ColorRGBA strainColor(double strain);
 /// Strain at which strainColor is fully red.

@@ -99,12 +99,14 @@ ClothNode::ClothNode(ros::NodeHandle nh, ros::NodeHandle private_nh, const NodeP
   frame_colliders_.start(&sim_, params_.tf_wait);
 
   cloth_marker_ = triangleMarker(params_.frame_id, "cloth", params_.color);
+  underside_marker_ = triangleMarker(params_.frame_id, "cloth_underside", params_.color);
   std_msgs::ColorRGBA opaque;
   opaque.r = opaque.g = opaque.b = opaque.a = 1.0f;  // per-vertex colours carry the strain
   strain_marker_ = triangleMarker(params_.frame_id, "strain", opaque);
   state_msg_.header.frame_id = params_.frame_id;
 
   cloth_pub_ = private_nh.advertise<visualization_msgs::Marker>("cloth", 2);
+  underside_pub_ = private_nh.advertise<visualization_msgs::Marker>("cloth_underside", 2);
   if (params_.publish_strain) {
     strain_pub_ = private_nh.advertise<visualization_msgs::Marker>("strain", 2);
   }
@@ -303,6 +305,19 @@ void ClothNode::publish(const ros::Time& stamp, TickStats tick) {
   cloth_marker_.header.stamp = stamp;
   state_msg_.header.stamp = stamp;
   cloth_pub_.publish(cloth_marker_);
+
+  if (underside_pub_.getNumSubscribers() > 0) {  // built only for a viewer
+    if (finite) {
+      setUndersidePoints(model(), sim_.positions(), &underside_marker_);
+      underside_valid_ = true;
+    }
+    if (underside_valid_) {
+      underside_marker_.header.stamp = stamp;
+      underside_pub_.publish(underside_marker_);
+    }
+  } else {
+    underside_valid_ = false;  // stale once nobody listens
+  }
 
   if (params_.publish_strain && strain_pub_.getNumSubscribers() > 0) {
     if (finite) {

@@ -130,17 +130,19 @@ class ClothNode {
   std::unique_ptr<LiveTuning> tuning_;
   ros::Subscriber clicked_sub_;
 
-  ros::Publisher cloth_pub_, strain_pub_, state_pub_, colliders_pub_;
+  ros::Publisher cloth_pub_, underside_pub_, strain_pub_, state_pub_, colliders_pub_;
   std::vector<ros::ServiceServer> services_;
   ros::SteadyTimer timer_;
   diagnostic_updater::Updater updater_;
 
   visualization_msgs::Marker cloth_marker_;   ///< reused: points rewritten in place
+  visualization_msgs::Marker underside_marker_;  ///< the cloth's back (setUndersidePoints)
   visualization_msgs::Marker strain_marker_;
   cloth_sim::ClothState state_msg_;
   visualization_msgs::MarkerArray collider_markers_;
   std::vector<cloth_sim::Pose> published_collider_poses_;  ///< as last on ~colliders
   bool strain_valid_ = false;  ///< strain_marker_ holds a finite state
+  bool underside_valid_ = false;  ///< underside_marker_ holds a finite state
 
   double diag_period_;                     ///< s; ~diagnostic_period as last accepted
   ros::SteadyTime next_diagnostics_;

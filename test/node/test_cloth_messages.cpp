@@ -53,6 +53,35 @@ TEST(ClothMessages, ClothMarkerHasTwoTrianglesPerCellWithConsistentWinding) {
   }
 }
 
+TEST(ClothMessages, UndersideIsEachTriangleTurnedOverJustBehindIt) {
+  // RViz lights a triangle on its winding's side only: the underside marker
+  // must face the other way and lie just behind the front, so that from
+  // either side the nearer face is lit.
+  cloth_sim::Simulation sim(scene(4, 5));
+  cloth_sim::VecX x = sim.positions();
+  for (int i = 0; i < sim.numNodes(); ++i) x[3 * i + 2] += 0.1 * std::sin(1.7 * i);  // not flat
+  auto front = cloth_sim_ros::triangleMarker("world", "cloth", cloth_sim_ros::defaultClothColor());
+  auto back = cloth_sim_ros::triangleMarker("world", "cloth_underside", cloth_sim_ros::defaultClothColor());
+  cloth_sim_ros::setTrianglePoints(sim.model(), x, &front);
+  cloth_sim_ros::setUndersidePoints(sim.model(), x, &back);
+  ASSERT_EQ(back.points.size(), front.points.size());
+  auto point = [](const geometry_msgs::Point& p) { return cloth_sim::Vec3(p.x, p.y, p.z); };
+  for (size_t t = 0; t < front.points.size(); t += 3) {
+    const cloth_sim::Vec3 a = point(front.points[t]), b = point(front.points[t + 1]),
+                          c = point(front.points[t + 2]);
+    const cloth_sim::Vec3 n = (b - a).cross(c - a).normalized();
+    // Same corners, other order: a, c, b.
+    const cloth_sim::Vec3 shift = point(back.points[t]) - a;
+    EXPECT_NEAR((point(back.points[t + 1]) - c - shift).norm(), 0.0, 1e-12);
+    EXPECT_NEAR((point(back.points[t + 2]) - b - shift).norm(), 0.0, 1e-12);
+    // Moved kUndersideOffset along the back normal, facing it.
+    EXPECT_NEAR((shift + cloth_sim_ros::kUndersideOffset * n).norm(), 0.0, 1e-12) << t / 3;
+    const cloth_sim::Vec3 bn = (point(back.points[t + 1]) - point(back.points[t]))
+                                   .cross(point(back.points[t + 2]) - point(back.points[t]));
+    EXPECT_LT(bn.dot(n), 0.0) << t / 3;
+  }
+}
+
 TEST(ClothMessages, AChainHasNoTriangles) {
   cloth_sim::Simulation sim(scene(5, 1));
   auto m = cloth_sim_ros::triangleMarker("world", "cloth", cloth_sim_ros::defaultClothColor());
