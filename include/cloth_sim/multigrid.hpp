@@ -60,6 +60,7 @@
 #include <algorithm>
 #include <vector>
 
+#include "cloth_sim/constraint_filter.hpp"
 #include "cloth_sim/model.hpp"
 #include "cloth_sim/types.hpp"
 
@@ -157,6 +158,17 @@ class MultigridPreconditioner {
   /// Count of coarse-level rebuilds, for tests and the benchmark.
   int rebuilds() const { return rebuilds_; }
 
+  /// Makes the finest level act on S A S instead of A, S the filter's
+  /// projectors (contacts, directional pins): its smoother solves a projected
+  /// node's row on the range of S only and the residual it restricts and the
+  /// correction it takes back are projected. Without this the V-cycle moved
+  /// projected nodes along their constrained directions and passed those
+  /// residuals to the coarse levels, and only CG's final filter took them
+  /// out (the fold demo laying a layer down, ~300 CG iterations a solve).
+  /// Call after prepare/setup, with the filter of the solve; no projection:
+  /// the V-cycle is as before, bit for bit.
+  void constrain(const ConstraintFilter& filter);
+
   /// z = B r, B the V-cycle (SPD on the free DOFs); pinned entries of z are
   /// zero and pinned entries of r are ignored.
   void apply(const VecX& r, VecX& z);
@@ -207,6 +219,12 @@ class MultigridPreconditioner {
   void vcycle(int level);
 
   std::vector<Level> levels_;
+  // constrain(): the finest level's smoother blocks with the projected
+  // nodes' replaced by S (S D S + (I - S) tr(D) / 3)^-1 S, and those nodes'
+  // projectors; empty when the filter has no projection.
+  std::vector<SymBlock> constrained_inv_;
+  std::vector<int> projected_;
+  std::vector<SymBlock> projector_;
   // Finest-level refill, per spring: the lower block it adds to (-1: none, a
   // pinned end); for a rerouted spring (via_node_ >= 0) the blocks of its two
   // halves, end i to via and via to end j.

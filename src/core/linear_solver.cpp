@@ -326,6 +326,7 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
       result.relative_residual = 1.0;
       return result;  // a singular block or coarse matrix: the caller's recovery decides
     }
+    ws.multigrid->constrain(filter);
   }
 
   if (x.isZero(0.0)) {

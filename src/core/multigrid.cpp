@@ -433,6 +433,8 @@ bool MultigridPreconditioner::prepare(const SystemMatrix& A, const std::vector<S
                                       const std::vector<char>& free, int rows, int cols,
                                       int max_solves) {
   checkGrid(A, rows, cols);
+  projected_.clear();  // until constrain() says otherwise
+  projector_.clear();
   bool reuse = ready_ && !rebuild_due_ && solves_since_build_ < max_solves;
   if (!matchesStructure(springs, free, rows, cols)) {
     buildStructure(springs, free, rows, cols);
@@ -491,7 +493,17 @@ void MultigridPreconditioner::vcycle(int l) {
   double* xp = x.data();
   double* rp = r.data();
   const double* bp = level.b.data();
-  const SymBlock* inv = level.inv_node_block.data();
+  const bool projected = l == 0 && !projected_.empty();
+  const SymBlock* inv = projected ? constrained_inv_.data() : level.inv_node_block.data();
+  // S v on the projected nodes (the finest level, constrained).
+  auto project = [&](VecX& v) {
+    double t[3];
+    for (size_t k = 0; k < projected_.size(); ++k) {
+      double* vi = v.data() + 3 * projected_[k];
+      projector_[k].multiply(vi, t);
+      vi[0] = t[0], vi[1] = t[1], vi[2] = t[2];
+    }
+  };
   // Row i solved from s (its right-hand side so far); x_i's coupling to the
   // rows of its lower-triangle entries scattered into r (both sweeps).
   auto relaxRow = [&](int i, double* s) {
@@ -505,6 +517,7 @@ void MultigridPreconditioner::vcycle(int l) {
   }
 
   // Coarse correction: x += P A_c^-1 P^T r (A_c^-1 by the next V-cycle).
+  if (projected) project(r);
   Level& coarse = levels_[l + 1];
   coarse.b.setZero();
   for (int i = 0; i < n; ++i) {
@@ -518,6 +531,7 @@ void MultigridPreconditioner::vcycle(int l) {
       x.segment<3>(3 * i) += level.interp_weight[a] * coarse.x.segment<3>(3 * level.interp_node[a]);
     }
   }
+  if (projected) project(x);  // x was in the range of S before the correction
 
   // Backward Gauss-Seidel (the forward sweep's transpose): rows j > i are
   // already new; their part -sum_{j > i} A_ij x_j is scattered into r as
@@ -526,6 +540,24 @@ void MultigridPreconditioner::vcycle(int l) {
   for (int i = n - 1; i >= 0; --i) {
     double s[3] = {bp[3 * i] + rp[3 * i], bp[3 * i + 1] + rp[3 * i + 1], bp[3 * i + 2] + rp[3 * i + 2]};
     relaxRow(i, s);
+  }
+}
+
+void MultigridPreconditioner::constrain(const ConstraintFilter& filter) {
+  projected_.clear();
+  projector_.clear();
+  if (!ready_ || !filter.hasProjections()) return;
+  const Level& finest = levels_.front();
+  constrained_inv_ = finest.inv_node_block;
+  for (int i : filter.projectedNodes()) {
+    if (!finest.free[i]) continue;
+    const Mat3 S = filter.projector(i);
+    const Mat3 D = finest.node_block[i].toMat3();
+    // As block Jacobi's projected block: SPD, exact on the range of S.
+    const Mat3 block = S * D * S + (Mat3::Identity() - S) * (D.trace() / 3.0);
+    constrained_inv_[i] = SymBlock::from(S * block.inverse() * S);
+    projected_.push_back(i);
+    projector_.push_back(SymBlock::from(S));
   }
 }
 

