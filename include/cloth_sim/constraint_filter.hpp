@@ -19,6 +19,14 @@
 
 namespace cloth_sim {
 
+/// A projected node's diagonal block D on the filtered system: S D S on the
+/// range of S, tr(D)/3 across it. SPD when D is, and its inverse is exact on
+/// the range of S (what the Cholesky factor, block Jacobi and the multigrid
+/// smoother use for a projected node).
+inline Mat3 projectedBlock(const Mat3& D, const Mat3& S) {
+  return S * D * S + (Mat3::Identity() - S) * (D.trace() / 3.0);
+}
+
 class ConstraintFilter {
  public:
   ConstraintFilter() = default;

@@ -155,7 +155,7 @@ bool CholeskyFactor::factorize(const SystemMatrix& A, const std::vector<Spring>&
     Mat3 D = free[i] ? diag[i].toMat3() : Mat3::Identity();
     if (filter.isProjected(i)) {
       const Mat3 S = filter.projector(i);
-      D = S * D * S + (Mat3::Identity() - S) * (D.trace() / 3.0);
+      D = projectedBlock(D, S);
     }
     for (int c = 0; c < 3; ++c) {
       for (int r = c; r < 3; ++r) values[diag_index_[9 * i + 3 * c + r]] = D(r, c);
@@ -295,10 +295,7 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
     // A projected node's block acts on the range of S only: invert
     // S D S + (I - S) tr(D)/3 (SPD), whose inverse on that range is exact.
     for (int i : filter.projectedNodes()) {
-      const Mat3 S = filter.projector(i);
-      const Mat3 D = diag[i].toMat3();
-      const Mat3 block = S * D * S + (Mat3::Identity() - S) * (D.trace() / 3.0);
-      ws.inv_diag[i] = SymBlock::from(block.inverse());
+      ws.inv_diag[i] = SymBlock::from(projectedBlock(diag[i].toMat3(), filter.projector(i)).inverse());
     }
   } else if (preconditioner == Preconditioner::Cholesky) {
     if (!ws.cholesky) ws.cholesky = std::make_shared<CholeskyFactor>();

@@ -552,10 +552,9 @@ void MultigridPreconditioner::constrain(const ConstraintFilter& filter) {
   for (int i : filter.projectedNodes()) {
     if (!finest.free[i]) continue;
     const Mat3 S = filter.projector(i);
-    const Mat3 D = finest.node_block[i].toMat3();
-    // As block Jacobi's projected block: SPD, exact on the range of S.
-    const Mat3 block = S * D * S + (Mat3::Identity() - S) * (D.trace() / 3.0);
-    constrained_inv_[i] = SymBlock::from(S * block.inverse() * S);
+    // As block Jacobi's projected block, kept on the range of S.
+    constrained_inv_[i] =
+        SymBlock::from(S * projectedBlock(finest.node_block[i].toMat3(), S).inverse() * S);
     projected_.push_back(i);
     projector_.push_back(SymBlock::from(S));
   }
