@@ -107,6 +107,27 @@ void setStrainColors(const cloth_sim::Model& model, const std::vector<double>& n
   }
 }
 
+geometry_msgs::TransformStamped clothFrame(const cloth_sim::Model& model,
+                                           const cloth_sim::VecX& positions,
+                                           const std::string& frame_id,
+                                           const std::string& child_frame) {
+  geometry_msgs::TransformStamped t;
+  t.header.frame_id = frame_id;
+  t.child_frame_id = child_frame;
+  cloth_sim::Vec3 sum = cloth_sim::Vec3::Zero();
+  double mass = 0.0;
+  for (int i = 0; i < model.numNodes(); ++i) {
+    sum += model.mass[i] * positions.segment<3>(3 * i);
+    mass += model.mass[i];
+  }
+  const cloth_sim::Vec3 centre = mass > 0.0 ? cloth_sim::Vec3(sum / mass) : cloth_sim::Vec3::Zero();
+  t.transform.translation.x = centre.x();
+  t.transform.translation.y = centre.y();
+  t.transform.translation.z = centre.z();
+  t.transform.rotation.w = 1.0;
+  return t;
+}
+
 void fillClothState(const cloth_sim::Simulation& sim, cloth_sim::ClothState* msg) {
   const cloth_sim::Model& model = sim.model();
   const int n = model.numNodes();

@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include <geometry_msgs/TransformStamped.h>
 #include <std_msgs/ColorRGBA.h>
 #include <visualization_msgs/Marker.h>
 #include <visualization_msgs/MarkerArray.h>
@@ -90,6 +91,15 @@ void fillColliderMarkers(const cloth_sim::Simulation& sim, const std::string& fr
 
 /// Fills a ClothState's cloth part: size, positions, velocities, pins, time.
 void fillClothState(const cloth_sim::Simulation& sim, cloth_sim::ClothState* msg);
+
+/// The ~cloth_frame transform: child_frame at the cloth's centre of mass
+/// (mass-weighted mean of the node positions), axes those of frame_id. It
+/// also puts frame_id into tf, so RViz finds its fixed frame when nothing
+/// else (a gripper, a robot) publishes it.
+geometry_msgs::TransformStamped clothFrame(const cloth_sim::Model& model,
+                                           const cloth_sim::VecX& positions,
+                                           const std::string& frame_id,
+                                           const std::string& child_frame);
 /// Fills a ClothState's statistics part from a tick.
 void fillTickStats(const TickStats& tick, cloth_sim::ClothState* msg);
 

@@ -96,6 +96,12 @@ ClothNode::ClothNode(ros::NodeHandle nh, ros::NodeHandle private_nh, const NodeP
   const Status status = applyTfPinParams();
   if (!status) throw ParamError(status.message);
   // Colliders with a `frame` need it too (throws naming colliders[k].frame).
+  for (size_t k = 0; k < sim_.colliders().size(); ++k) {
+    if (!params_.cloth_frame.empty() && sim_.colliders()[k].frame() == params_.cloth_frame) {
+      throw ParamError("colliders[" + std::to_string(k) + "].frame: '" + params_.cloth_frame +
+                       "' is the node's own ~cloth_frame");
+    }
+  }
   frame_colliders_.start(&sim_, params_.tf_wait);
 
   cloth_marker_ = triangleMarker(params_.frame_id, "cloth", params_.color);
@@ -111,6 +117,7 @@ ClothNode::ClothNode(ros::NodeHandle nh, ros::NodeHandle private_nh, const NodeP
     strain_pub_ = private_nh.advertise<visualization_msgs::Marker>("strain", 2);
   }
   state_pub_ = private_nh.advertise<cloth_sim::ClothState>("state", 2);
+  if (!params_.cloth_frame.empty()) cloth_frame_pub_ = std::make_unique<tf2_ros::TransformBroadcaster>();
   colliders_pub_ = private_nh.advertise<visualization_msgs::MarkerArray>("colliders", 2,
                                                                         /*latch=*/true);
   services_.push_back(private_nh.advertiseService("pin_nodes", &ClothNode::onPinNodes, this));
@@ -333,6 +340,14 @@ void ClothNode::publish(const ros::Time& stamp, TickStats tick) {
     strain_valid_ = false;  // stale once nobody listens
   }
   state_pub_.publish(state_msg_);
+
+  if (cloth_frame_pub_ && finite && stamp > cloth_frame_stamp_) {
+    geometry_msgs::TransformStamped frame =
+        clothFrame(model(), sim_.positions(), params_.frame_id, params_.cloth_frame);
+    frame.header.stamp = stamp;
+    cloth_frame_pub_->sendTransform(frame);
+    cloth_frame_stamp_ = stamp;
+  }
 }
 
 void ClothNode::updateFrameColliders() {
@@ -389,6 +404,10 @@ Status ClothNode::pinNodes(const std::vector<long>& indices, const std::vector<V
   const Status valid = checkIndices(indices, sim_.numNodes(), &nodes);
   if (!valid) return valid;
 
+  if (!params_.cloth_frame.empty() && frame == params_.cloth_frame) {
+    return Status::error("frame_id: '" + frame +
+                         "' is the node's own ~cloth_frame: a pin on it would follow the cloth it holds");
+  }
   const bool attach = !frame.empty() && frame != params_.frame_id;
   std::vector<Vec3> targets = positions;  // fixed frame; empty: where they are
   std::vector<Vec3> offsets;

@@ -12,6 +12,7 @@
 #include <ros/ros.h>
 #include <std_srvs/Trigger.h>
 #include <tf2_ros/buffer.h>
+#include <tf2_ros/transform_broadcaster.h>
 #include <tf2_ros/transform_listener.h>
 #include <visualization_msgs/Marker.h>
 #include <visualization_msgs/MarkerArray.h>
@@ -131,6 +132,8 @@ class ClothNode {
   ros::Subscriber clicked_sub_;
 
   ros::Publisher cloth_pub_, underside_pub_, strain_pub_, state_pub_, colliders_pub_;
+  std::unique_ptr<tf2_ros::TransformBroadcaster> cloth_frame_pub_;  ///< ~cloth_frame; null: none
+  ros::Time cloth_frame_stamp_;  ///< last one sent: tf2 refuses a stamp twice (a paused /clock)
   std::vector<ros::ServiceServer> services_;
   ros::SteadyTimer timer_;
   diagnostic_updater::Updater updater_;

@@ -104,7 +104,7 @@ const std::set<std::string>& nodeParamKeys() {
   // tuning and drag: the namespaces of the dynamic_reconfigure server and the
   // interactive-marker server (their state, never scene schema).
   static const std::set<std::string> keys = {
-      "rate",    "frame_id",          "color",      "publish_strain", "tf_pins",
+      "rate",    "frame_id",  "cloth_frame", "color",      "publish_strain", "tf_pins",
       "tf_timeout", "tf_wait",        "diagnostic_period", "drag_radius",
       "drag_pick_distance", "tuning", "drag"};
   return keys;
@@ -133,6 +133,13 @@ NodeParams readNodeParams(const XmlRpcValue& private_ns) {
     p.frame_id = readString(ns["frame_id"], "frame_id");
     if (p.frame_id.empty()) fail("frame_id", "must name a frame", ns["frame_id"]);
   }
+  if (ns.hasMember("cloth_frame")) {
+    p.cloth_frame = readString(ns["cloth_frame"], "cloth_frame");  // empty: not published
+  }
+  if (!p.cloth_frame.empty() && p.cloth_frame == p.frame_id) {
+    throw ParamError("cloth_frame: must differ from frame_id '" + p.frame_id +
+                     "' (its parent), or be empty for no frame");
+  }
   if (ns.hasMember("color")) {
     const XmlRpcValue& c = ns["color"];
     const std::string rule = "must be a list of 4 numbers [r, g, b, a] in [0, 1]";
@@ -158,7 +165,13 @@ NodeParams readNodeParams(const XmlRpcValue& private_ns) {
     if (pins.getType() != XmlRpcValue::TypeArray) {
       fail("tf_pins", "must be a list of {indices: [..], frame_id: ..}", pins);
     }
-    for (int k = 0; k < pins.size(); ++k) p.tf_pins.push_back(readTfPin(pins[k], element("tf_pins", k)));
+    for (int k = 0; k < pins.size(); ++k) {
+      p.tf_pins.push_back(readTfPin(pins[k], element("tf_pins", k)));
+      if (p.tf_pins.back().frame_id == p.cloth_frame) {  // the cloth would drag itself
+        throw ParamError(element("tf_pins", k) + ".frame_id: '" + p.cloth_frame +
+                         "' is the node's own ~cloth_frame");
+      }
+    }
   }
   if (ns.hasMember("tf_timeout")) {
     p.tf_timeout = readNumber(ns["tf_timeout"], "tf_timeout", "must be a finite number > 0 (s)",

@@ -31,6 +31,7 @@ struct TfPinParam {
 struct NodeParams {
   double rate = 60.0;               ///< timer ticks per second, Hz
   std::string frame_id = "world";   ///< frame of every published point
+  std::string cloth_frame = "cloth";  ///< tf frame at the cloth's centre of mass; empty: none
   std_msgs::ColorRGBA color;        ///< ~cloth colour (set in readNodeParams)
   bool publish_strain = true;       ///< advertise ~strain
   std::vector<TfPinParam> tf_pins;  ///< pins attached to tf2 frames at start-up

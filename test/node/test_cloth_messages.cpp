@@ -82,6 +82,35 @@ TEST(ClothMessages, UndersideIsEachTriangleTurnedOverJustBehindIt) {
   }
 }
 
+TEST(ClothMessages, ClothFrameSitsAtTheCentreOfMass) {
+  // A heavy corner pulls the centre of mass towards it: the mean of the
+  // positions would not.
+  cloth_sim::Simulation sim(cloth_sim::parseScene(
+      "{cloth: {rows: 3, cols: 3, width: 2.0, length: 2.0, origin: [1, 2, 3], mass: 0.9, "
+      "node_mass: {8: 1.0}}, springs: {stretch: {stiffness: 100}}}"));
+  const cloth_sim::Model& model = sim.model();
+  cloth_sim::Vec3 expected = cloth_sim::Vec3::Zero();
+  double mass = 0.0;
+  for (int i = 0; i < model.numNodes(); ++i) {
+    expected += model.mass[i] * sim.positions().segment<3>(3 * i);
+    mass += model.mass[i];
+  }
+  expected /= mass;
+  const auto t = cloth_sim_ros::clothFrame(model, sim.positions(), "world", "cloth");
+  EXPECT_EQ(t.header.frame_id, "world");
+  EXPECT_EQ(t.child_frame_id, "cloth");
+  EXPECT_NEAR(t.transform.translation.x, expected.x(), 1e-12);
+  EXPECT_NEAR(t.transform.translation.y, expected.y(), 1e-12);
+  EXPECT_NEAR(t.transform.translation.z, expected.z(), 1e-12);
+  EXPECT_EQ(t.transform.rotation.w, 1.0);
+  EXPECT_EQ(t.transform.rotation.x, 0.0);
+  // Node 8 (1 kg of 1.8) is the corner at the far row and column.
+  cloth_sim::Vec3 mean = cloth_sim::Vec3::Zero();
+  for (int i = 0; i < model.numNodes(); ++i) mean += sim.positions().segment<3>(3 * i) / 9.0;
+  const cloth_sim::Vec3 corner = sim.positions().segment<3>(3 * 8);
+  EXPECT_LT((expected - corner).norm(), (mean - corner).norm() - 0.3);
+}
+
 TEST(ClothMessages, AChainHasNoTriangles) {
   cloth_sim::Simulation sim(scene(5, 1));
   auto m = cloth_sim_ros::triangleMarker("world", "cloth", cloth_sim_ros::defaultClothColor());

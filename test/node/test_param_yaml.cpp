@@ -138,6 +138,7 @@ TEST(NodeParams, DefaultsAndValidValues) {
   EXPECT_TRUE(defaults.publish_strain);
   EXPECT_TRUE(defaults.tf_pins.empty());
   EXPECT_EQ(defaults.diagnostic_period, 1.0);
+  EXPECT_EQ(defaults.cloth_frame, "cloth");
 
   XmlRpcValue t = demoTree();
   XmlRpcValue pin;
@@ -152,6 +153,10 @@ TEST(NodeParams, DefaultsAndValidValues) {
   EXPECT_EQ(p.tf_pins[0].indices, std::vector<int>{23});
   EXPECT_EQ(p.tf_pins[0].frame_id, "gripper");
   EXPECT_TRUE(p.tf_pins[0].positions.empty());
+
+  XmlRpcValue no_frame;
+  no_frame["cloth_frame"] = std::string("");  // no ~cloth_frame transform
+  EXPECT_EQ(cloth_sim_ros::readNodeParams(no_frame).cloth_frame, "");
 }
 
 void expectParamError(XmlRpcValue tree, const std::string& must_start) {
@@ -196,6 +201,16 @@ TEST(NodeParams, BadValuesNameTheParameter) {
   t["tf_pins"][0]["frame_id"] = std::string("g");
   t["tf_pins"][0]["frame"] = std::string("g");
   expectParamError(t, "tf_pins[0].frame: unknown key");
+  t = XmlRpcValue();
+  t["cloth_frame"] = std::string("world");
+  expectParamError(t, "cloth_frame: must differ from frame_id 'world'");
+  t["cloth_frame"] = 1;
+  expectParamError(t, "cloth_frame: must be a string, got 1");
+  t = XmlRpcValue();
+  t["tf_pins"].setSize(1);
+  t["tf_pins"][0]["indices"] = ints({1});
+  t["tf_pins"][0]["frame_id"] = std::string("cloth");  // would follow the cloth it holds
+  expectParamError(t, "tf_pins[0].frame_id: 'cloth' is the node's own ~cloth_frame");
   t = XmlRpcValue();
   t["diagnostic_period"] = 0.25;
   EXPECT_EQ(cloth_sim_ros::readNodeParams(t).diagnostic_period, 0.25);

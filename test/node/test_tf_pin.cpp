@@ -6,6 +6,8 @@
 
 #include <ros/ros.h>
 #include <std_srvs/Trigger.h>
+#include <tf2_ros/buffer.h>
+#include <tf2_ros/transform_listener.h>
 
 #include "cloth_sim/PinNodes.h"
 #include "node_test_helpers.hpp"
@@ -129,6 +131,48 @@ TEST(TfPin, PinnedNodesFollowAMovingFrameWithinOneTick) {
   ASSERT_TRUE(client.waitState([](const ClothState&) { return true; }, 5.0, &s));
   EXPECT_EQ(toVec(s.positions[7]), kStart);
   EXPECT_EQ(s.pinned, (std::vector<uint32_t>{0, 7}));
+}
+
+// ~cloth_frame: the node puts `cloth` into tf at the cloth's centre of mass,
+// stamped like the state it was computed from, so the fixed frame `world`
+// exists in tf (RViz's "Fixed Frame" status) even with no gripper running.
+TEST(TfPin, ClothFrameIsTheCentreOfMassOfEachState) {
+  cloth_sim_test::NodeClient client;
+  ASSERT_TRUE(ros::service::waitForService("/cloth_sim/pin_nodes", ros::Duration(30)));
+  ASSERT_TRUE(client.reset());
+  tf2_ros::Buffer buffer;
+  tf2_ros::TransformListener listener(buffer);
+  cloth_sim_test::spinUntil([] { return false; }, 0.5);  // the buffer fills
+  const cloth_sim::Model model = cloth_sim::buildModel(cloth_sim_test::smallScene());
+  int checked = 0;
+  for (int k = 0; k < 5; ++k) {
+    ClothState s;
+    ASSERT_TRUE(client.waitState([](const ClothState&) { return true; }, 5.0, &s));
+    std::string error;
+    ASSERT_TRUE(buffer.canTransform("world", "cloth", s.header.stamp, ros::Duration(2.0), &error))
+        << error;
+    const auto t = buffer.lookupTransform("world", "cloth", s.header.stamp);
+    Vec3 centre = Vec3::Zero();
+    double mass = 0.0;
+    for (int i = 0; i < model.numNodes(); ++i) {
+      centre += model.mass[i] * toVec(s.positions[i]);
+      mass += model.mass[i];
+    }
+    centre /= mass;
+    EXPECT_LT((Vec3(t.transform.translation.x, t.transform.translation.y,
+                    t.transform.translation.z) - centre).norm(), 1e-9);
+    EXPECT_EQ(t.transform.rotation.w, 1.0);
+    ++checked;
+  }
+  EXPECT_EQ(checked, 5);
+  // The cloth's own frame cannot hold a pin: it would follow what it holds.
+  cloth_sim::PinNodes srv;
+  srv.request.indices = {3};
+  srv.request.frame_id = "cloth";
+  ASSERT_TRUE(ros::service::call("/cloth_sim/pin_nodes", srv));
+  EXPECT_FALSE(srv.response.success);
+  EXPECT_EQ(srv.response.message.rfind("frame_id: 'cloth' is the node's own ~cloth_frame", 0), 0u)
+      << srv.response.message;
 }
 
 }  // namespace
