@@ -171,13 +171,14 @@ struct CgWorkspace {
 double autoStiffness(const Model& model, double h);
 
 /// What `auto` runs for a step of size h (docs/scene.md gives the measurements):
-/// - block_jacobi while kappa <= jacobi_limit: there CG usually converges in
-///   a few hundred cheap iterations, cheaper than a factorization (the 24 x 24
-///   demo, dt 1/120, CG to 1e-4: block Jacobi 1.5 ms a step at kappa 2700,
-///   3.1 ms at 26000; cholesky 4.3 and 8.4). kappa alone does not say when block
-///   Jacobi stops paying (a falling flat 20 x 20 cloth, CG to 1e-6, needed
-///   thousands of iterations at kappa 3750): AutoPreconditioner watches the
-///   iterations and lowers the limit;
+/// - while kappa <= jacobi_limit, the cheap one (cheapPreconditioner): there
+///   CG usually converges in a few hundred block-Jacobi iterations, cheaper
+///   than a factorization (the 24 x 24 demo, dt 1/120, CG to 1e-4: block
+///   Jacobi 1.5 ms a step at kappa 2700, 3.1 ms at 26000; cholesky 4.3 and
+///   8.4), and in a few multigrid V-cycles, cheaper still from 12 x 12 up.
+///   kappa alone does not say when it stops paying (a falling flat 20 x 20
+///   cloth, CG to 1e-6, needed thousands of block-Jacobi iterations at kappa
+///   3750): AutoPreconditioner watches the iterations and lowers the limit;
 /// - cholesky up to kAutoCholeskyNodes nodes when stiffer: a factor of the
 ///   whole matrix solves at any stiffness in a few iterations;
 /// - multigrid beyond (the factorization's fill grows faster than the grid).
@@ -185,12 +186,22 @@ double autoStiffness(const Model& model, double h);
 /// A stiffer one than block Jacobi for this model: cholesky up to
 /// kAutoCholeskyNodes nodes, multigrid beyond.
 Preconditioner strongerPreconditioner(const Model& model);
+/// The cheap one for a soft cloth: multigrid on a grid of at least
+/// kAutoMultigridNodes nodes, block Jacobi on smaller ones. Measured
+/// (2026-11-24, ms a step, block Jacobi / multigrid): the demo cloth at
+/// 16 x 16 0.58 / 0.31 and 24 x 24 2.09 / 0.77 (implicit_euler dt 1/120, CG
+/// 1e-4); the hang cloth at 12 x 12 0.15 / 0.11, 32 x 32 2.2 / 0.88 and
+/// 48 x 48 7.2 / 2.1 (bdf2 dt 1/160, CG 1e-2): block Jacobi's iterations grow
+/// with the grid (17 to 80), the V-cycle's barely (2.5 to 4.3).
+Preconditioner cheapPreconditioner(const Model& model);
+/// Grids from this many nodes get multigrid as the cheap preconditioner.
+constexpr int kAutoMultigridNodes = 144;
 /// Above this kappa `auto` does not try block Jacobi at all (the demo at
 /// stretch 1e6, kappa 5e5: thousands of iterations; at 5e4 stretch, kappa
 /// 26000, still 220 and cheaper than the factor).
 constexpr double kAutoJacobiLimit = 5.0e4;
-/// A block-Jacobi solve that has not converged after this many iterations
-/// goes on with the stronger preconditioner (about where a cholesky solve
+/// A cheap-preconditioner solve that has not converged after this many
+/// iterations goes on with the stronger preconditioner (about where a cholesky solve
 /// costs less: 300 block-Jacobi iterations on the 20 x 20 and 24 x 24 cloths).
 constexpr int kAutoJacobiIterations = 400;
 constexpr int kAutoCholeskyNodes = 4096;
@@ -224,7 +235,7 @@ class AutoPreconditioner {
  private:
   double jacobi_limit_ = kAutoJacobiLimit;
   double kappa_ = 0.0;      ///< of the attempt being solved
-  bool jacobi_ = false;     ///< the attempt being solved started with block Jacobi
+  bool jacobi_ = false;     ///< the attempt being solved started with the cheap one
   bool escalated_ = false;  ///< ... and escalated
   int streak_ = 0;          ///< attempts in a row that escalated
   int since_lowered_ = 0;   ///< attempts since the limit was lowered

@@ -241,6 +241,12 @@ Preconditioner strongerPreconditioner(const Model& model) {
                                                 : Preconditioner::Multigrid;
 }
 
+Preconditioner cheapPreconditioner(const Model& model) {
+  const bool grid = model.rows > 1 && model.cols > 1 && model.rows * model.cols == model.numNodes();
+  return grid && model.numNodes() >= kAutoMultigridNodes ? Preconditioner::Multigrid
+                                                         : Preconditioner::BlockJacobi;
+}
+
 Preconditioner AutoPreconditioner::choose(Preconditioner requested, const Model& model,
                                           double h) {
   if (requested != Preconditioner::Auto) return requested;
@@ -254,9 +260,9 @@ Preconditioner AutoPreconditioner::choose(Preconditioner requested, const Model&
   }
   kappa_ = autoStiffness(model, h);
   escalated_ = false;
-  const Preconditioner chosen =
-      kappa_ <= jacobi_limit_ ? Preconditioner::BlockJacobi : strongerPreconditioner(model);
-  jacobi_ = chosen == Preconditioner::BlockJacobi;
+  const Preconditioner stronger = strongerPreconditioner(model);
+  const Preconditioner chosen = kappa_ <= jacobi_limit_ ? cheapPreconditioner(model) : stronger;
+  jacobi_ = chosen != stronger;  // a guess the iterations judge
   return chosen;
 }
 

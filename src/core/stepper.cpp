@@ -23,13 +23,14 @@ double secondsSince(Clock::time_point start) {
 CgResult Stepper::solveLinear(const Model& model, const VecX& b, VecX& x, double tolerance) {
   if (!(tolerance > 0.0)) tolerance = settings_.tolerance;
   const bool trial = settings_.preconditioner == Preconditioner::Auto &&
-                     preconditioner_ == Preconditioner::BlockJacobi;
+                     preconditioner_ != strongerPreconditioner(model);
   const int cap = trial ? std::min(settings_.max_iterations, kAutoJacobiIterations)
                         : settings_.max_iterations;
   CgResult cg = conjugateGradient(A_, model.springs, filter_, b, x, preconditioner_,
                                   tolerance, cap, cg_);
   if (!trial || cg.converged) return cg;
-  // `auto` guessed block Jacobi and it does not pay: on from where it got to.
+  // `auto` guessed the cheap preconditioner and it does not pay: on from
+  // where it got to.
   preconditioner_ = auto_.escalate(model);
   const int spent = cg.iterations;
   cg = conjugateGradient(A_, model.springs, filter_, b, x, preconditioner_, tolerance,

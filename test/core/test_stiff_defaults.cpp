@@ -2,6 +2,9 @@
 // pick what a stiff cloth needs, so a calm hanging cloth never splits a step.
 #include <gtest/gtest.h>
 
+#include <string>
+#include <utility>
+
 #include "cloth_sim/json_text.hpp"
 #include "cloth_sim/linear_solver.hpp"
 #include "cloth_sim/simulation.hpp"
@@ -23,7 +26,15 @@ TEST(AutoPreconditioner, PicksByStiffnessAndSize) {
   EXPECT_EQ(soft.solver.preconditioner, Preconditioner::Auto);
   const Model demo = buildModel(soft);
   AutoPreconditioner a;
-  EXPECT_EQ(a.choose(Preconditioner::Auto, demo, 1.0 / 120.0), Preconditioner::BlockJacobi);
+  // Soft: a multigrid V-cycle on a grid of 12 x 12 or more, block Jacobi
+  // below and on a chain (cheapPreconditioner's measurements).
+  EXPECT_EQ(a.choose(Preconditioner::Auto, demo, 1.0 / 120.0), Preconditioner::Multigrid);
+  const Model small = buildModel(parseScene("cloth: {rows: 11, cols: 11}\n", {}));
+  EXPECT_EQ(a.choose(Preconditioner::Auto, small, 1.0 / 120.0), Preconditioner::BlockJacobi);
+  const Model square = buildModel(parseScene("cloth: {rows: 12, cols: 12}\n", {}));
+  EXPECT_EQ(a.choose(Preconditioner::Auto, square, 1.0 / 120.0), Preconditioner::Multigrid);
+  const Model chain = buildModel(parseScene("cloth: {rows: 200, cols: 1}\n", {}));
+  EXPECT_EQ(a.choose(Preconditioner::Auto, chain, 1.0 / 120.0), Preconditioner::BlockJacobi);
   const Model stiff = buildModel(calmHangingCloth(1e6, 1.0 / 120.0, Method::ImplicitEuler));
   EXPECT_EQ(a.choose(Preconditioner::Auto, stiff, 1.0 / 120.0), Preconditioner::Cholesky);
   const Scene large =
@@ -35,33 +46,40 @@ TEST(AutoPreconditioner, PicksByStiffnessAndSize) {
             Preconditioner::BlockJacobi);
 }
 
-TEST(AutoPreconditioner, RemembersWhereBlockJacobiDidNotPay) {
-  const Model demo = buildModel(
-      parseScene("cloth: {rows: 24, cols: 24}\n", {"springs.stretch.stiffness=5000"}));
-  const double h = 1.0 / 120.0, kappa = autoStiffness(demo, h);
-  AutoPreconditioner a;
-  // One long solve now and then does not move the limit ...
-  for (int k = 0; k < 10; ++k) {
-    ASSERT_EQ(a.choose(Preconditioner::Auto, demo, h), Preconditioner::BlockJacobi);
-    if (k % 2 == 0) EXPECT_EQ(a.escalate(demo), Preconditioner::Cholesky);
+// The cheap guess is block Jacobi on a small cloth and multigrid on the demo;
+// either way the same rule judges it.
+TEST(AutoPreconditioner, RemembersWhereTheCheapGuessDidNotPay) {
+  for (const auto& [side, cheap] : {std::pair{10, Preconditioner::BlockJacobi},
+                                    std::pair{24, Preconditioner::Multigrid}}) {
+    SCOPED_TRACE(side);
+    const Model demo = buildModel(parseScene(
+        "cloth: {rows: " + std::to_string(side) + ", cols: " + std::to_string(side) + "}\n",
+        {"springs.stretch.stiffness=5000"}));
+    const double h = 1.0 / 120.0, kappa = autoStiffness(demo, h);
+    AutoPreconditioner a;
+    // One long solve now and then does not move the limit ...
+    for (int k = 0; k < 10; ++k) {
+      ASSERT_EQ(a.choose(Preconditioner::Auto, demo, h), cheap);
+      if (k % 2 == 0) EXPECT_EQ(a.escalate(demo), Preconditioner::Cholesky);
+    }
+    // ... attempts that all need the factor do.
+    for (int k = 0; k < AutoPreconditioner::kAutoEscalations; ++k) {
+      ASSERT_EQ(a.choose(Preconditioner::Auto, demo, h), cheap);
+      a.escalate(demo);
+    }
+    EXPECT_EQ(a.choose(Preconditioner::Auto, demo, h), Preconditioner::Cholesky);
+    EXPECT_DOUBLE_EQ(a.jacobiLimit(), 0.5 * kappa);
+    // A step a quarter as long (kappa about 1/4 to 1/16): the cheap one again.
+    EXPECT_EQ(a.choose(Preconditioner::Auto, demo, h / 4), cheap);
+    // The cheap one is tried again after a while.
+    Preconditioner last = Preconditioner::Cholesky;
+    for (int k = 0; k <= AutoPreconditioner::kAutoReprobeAttempts + 1; ++k) {
+      last = a.choose(Preconditioner::Auto, demo, h);
+    }
+    EXPECT_EQ(last, cheap);
+    a.reset();
+    EXPECT_EQ(a.choose(Preconditioner::Auto, demo, h), cheap);
   }
-  // ... attempts that all need the factor do.
-  for (int k = 0; k < AutoPreconditioner::kAutoEscalations; ++k) {
-    ASSERT_EQ(a.choose(Preconditioner::Auto, demo, h), Preconditioner::BlockJacobi);
-    a.escalate(demo);
-  }
-  EXPECT_EQ(a.choose(Preconditioner::Auto, demo, h), Preconditioner::Cholesky);
-  EXPECT_DOUBLE_EQ(a.jacobiLimit(), 0.5 * kappa);
-  // A step a quarter as long (kappa about 1/4 to 1/16): block Jacobi again.
-  EXPECT_EQ(a.choose(Preconditioner::Auto, demo, h / 4), Preconditioner::BlockJacobi);
-  // Block Jacobi is tried again after a while.
-  Preconditioner last = Preconditioner::Cholesky;
-  for (int k = 0; k <= AutoPreconditioner::kAutoReprobeAttempts + 1; ++k) {
-    last = a.choose(Preconditioner::Auto, demo, h);
-  }
-  EXPECT_EQ(last, Preconditioner::BlockJacobi);
-  a.reset();
-  EXPECT_EQ(a.choose(Preconditioner::Auto, demo, h), Preconditioner::BlockJacobi);
 }
 
 // A falling flat 20 x 20 cloth at stretch 1e4, dt 1/60, CG to 1e-6 (the
