@@ -183,8 +183,8 @@ double autoStiffness(const Model& model, double h);
 ///   whole matrix solves at any stiffness in a few iterations;
 /// - multigrid beyond (the factorization's fill grows faster than the grid).
 /// AutoPreconditioner (below) makes the choice; any other request is kept.
-/// A stiffer one than block Jacobi for this model: cholesky up to
-/// kAutoCholeskyNodes nodes, multigrid beyond.
+/// A stronger one than the cheap guess for this model: cholesky up to
+/// kAutoCholeskyNodes nodes, multigrid beyond (where it is the cheap guess too).
 Preconditioner strongerPreconditioner(const Model& model);
 /// The cheap one for a soft cloth: multigrid on a grid of at least
 /// kAutoMultigridNodes nodes, block Jacobi on smaller ones. Measured
@@ -196,22 +196,22 @@ Preconditioner strongerPreconditioner(const Model& model);
 Preconditioner cheapPreconditioner(const Model& model);
 /// Grids from this many nodes get multigrid as the cheap preconditioner.
 constexpr int kAutoMultigridNodes = 144;
-/// Above this kappa `auto` does not try block Jacobi at all (the demo at
+/// Above this kappa `auto` does not try the cheap guess at all (the demo at
 /// stretch 1e6, kappa 5e5: thousands of iterations; at 5e4 stretch, kappa
 /// 26000, still 220 and cheaper than the factor).
 constexpr double kAutoJacobiLimit = 5.0e4;
-/// A cheap-preconditioner solve that has not converged after this many
-/// iterations goes on with the stronger preconditioner (about where a cholesky solve
-/// costs less: 300 block-Jacobi iterations on the 20 x 20 and 24 x 24 cloths).
+/// A solve with the cheap guess that has not converged after this many
+/// iterations goes on with the stronger preconditioner (about where a cholesky
+/// solve costs less: 300 block-Jacobi iterations on the 20 x 20 and 24 x 24 cloths).
 constexpr int kAutoJacobiIterations = 400;
 constexpr int kAutoCholeskyNodes = 4096;
 
-/// `auto` across steps: block Jacobi where it pays. A block-Jacobi solve
-/// that runs past kAutoJacobiIterations goes on with the stronger
-/// preconditioner (no step is rejected for the guess). After
-/// kAutoEscalations attempts in a row did so, the stronger one is used from
-/// the start for every step at least half that stiff (kappa), and block
-/// Jacobi is tried again after kAutoReprobeAttempts attempts, or on a cloth
+/// `auto` across steps: the cheap guess (block Jacobi or multigrid,
+/// cheapPreconditioner) where it pays. A solve with it that runs past
+/// kAutoJacobiIterations goes on with the stronger preconditioner (no step is
+/// rejected for the guess). After kAutoEscalations attempts in a row did so,
+/// the stronger one is used from the start for every step at least half that
+/// stiff (kappa), and the guess is tried again after kAutoReprobeAttempts attempts, or on a cloth
 /// made much softer. One long solve alone does not move the limit: the
 /// flooded demo node (pins grasped and released 200 times a second) has
 /// such solves now and then, and a limit lowered by them put it on the
@@ -235,7 +235,7 @@ class AutoPreconditioner {
  private:
   double jacobi_limit_ = kAutoJacobiLimit;
   double kappa_ = 0.0;      ///< of the attempt being solved
-  bool jacobi_ = false;     ///< the attempt being solved started with the cheap one
+  bool guessed_ = false;    ///< the attempt being solved started with the cheap guess
   bool escalated_ = false;  ///< ... and escalated
   int streak_ = 0;          ///< attempts in a row that escalated
   int since_lowered_ = 0;   ///< attempts since the limit was lowered

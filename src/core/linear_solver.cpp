@@ -250,19 +250,19 @@ Preconditioner cheapPreconditioner(const Model& model) {
 Preconditioner AutoPreconditioner::choose(Preconditioner requested, const Model& model,
                                           double h) {
   if (requested != Preconditioner::Auto) return requested;
-  if (jacobi_) streak_ = escalated_ ? streak_ + 1 : 0;  // the last attempt's verdict
+  if (guessed_) streak_ = escalated_ ? streak_ + 1 : 0;  // the last attempt's verdict
   if (streak_ >= kAutoEscalations) {
     jacobi_limit_ = std::min(jacobi_limit_, 0.5 * kappa_);
     streak_ = 0;
     since_lowered_ = 0;
   } else if (jacobi_limit_ < kAutoJacobiLimit && ++since_lowered_ > kAutoReprobeAttempts) {
-    jacobi_limit_ = kAutoJacobiLimit;  // try block Jacobi again
+    jacobi_limit_ = kAutoJacobiLimit;  // try the cheap guess again
   }
   kappa_ = autoStiffness(model, h);
   escalated_ = false;
   const Preconditioner stronger = strongerPreconditioner(model);
   const Preconditioner chosen = kappa_ <= jacobi_limit_ ? cheapPreconditioner(model) : stronger;
-  jacobi_ = chosen != stronger;  // a guess the iterations judge
+  guessed_ = chosen != stronger;  // a guess the iterations judge
   return chosen;
 }
 

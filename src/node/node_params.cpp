@@ -167,7 +167,9 @@ NodeParams readNodeParams(const XmlRpcValue& private_ns) {
     }
     for (int k = 0; k < pins.size(); ++k) {
       p.tf_pins.push_back(readTfPin(pins[k], element("tf_pins", k)));
-      if (p.tf_pins.back().frame_id == p.cloth_frame) {  // the cloth would drag itself
+      // The cloth would drag itself. pinNodes refuses it too, but only after
+      // the start-up wait for the pin's frame, which this one never gets.
+      if (p.tf_pins.back().frame_id == p.cloth_frame) {
         throw ParamError(element("tf_pins", k) + ".frame_id: '" + p.cloth_frame +
                          "' is the node's own ~cloth_frame");
       }
