@@ -39,6 +39,17 @@ double gravityEnergy(const Model& model, const VecX& x);  ///< -sum m g.x
 /// round-off of about eps k L, so a force balance cannot be met more closely
 /// than about eps times this.
 double springForceScale(const Model& model);
+/// The round-off floor of a step's momentum residual ||M (v1 - av) - b h f||:
+/// 100 eps times the size of its terms (M av, the weight and a unit-strain
+/// spring force, times b h). Newton stops there: below it ||g|| is noise.
+double residualRoundOff(const Model& model, double bh, const VecX& av);
+/// The energy a residual r of residualRoundOff's size can move (J):
+/// |av|_M r / sqrt(m_min) + 1/2 r^2 / m_min. A residual g moves v1 by
+/// H^-1 g, the energy by (M av)^T H^-1 g to first order (dE/dv1 = M av at
+/// the solution), and H >= M. It matters only for stiff springs (stretch
+/// 1e8: ~1e-17 J at rest, 4e-5 J moving at 11 J, dt 0.1); elsewhere it is
+/// far below the energy check's 1e-6 of the energy scale.
+double energyRoundOff(const Model& model, double bh, const VecX& av);
 /// Largest |d|/L - 1 over all springs (0 without springs).
 double maxStrain(const Model& model, const VecX& x);
 

@@ -27,6 +27,10 @@ struct StepStats {
   double energy = 0.0;        ///< 1/2 m v^2 + elastic - m g.x after the step
   double max_strain = 0.0;    ///< max over springs of |d|/L - 1
   double work_in = 0.0;       ///< work done on the cloth by moving pins and stiffness changes
+  /// Energy the step's round-off can move (J, energyRoundOff; summed over
+  /// sub-steps): the energy check forgives gains below it, and so should
+  /// any check of energy per step.
+  double energy_round_off = 0.0;
   bool finite = true;         ///< every position and velocity finite
   int substeps = 1;           ///< steps actually taken (> 1 after recovery)
   int halvings = 0;           ///< deepest step halving used by recovery

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace cloth_sim {
 
@@ -148,6 +149,29 @@ double springForceScale(const Model& model) {
   double sum = 0.0;
   for (const SpringGroup& g : model.groups) sum += g.stiffness * g.stiffness * g.rest_length_sq;
   return std::sqrt(sum);
+}
+
+double residualRoundOff(const Model& model, double bh, const VecX& av) {
+  double momentum = 0.0, weight = 0.0;
+  for (int i = 0; i < model.numNodes(); ++i) {
+    momentum += model.mass[i] * model.mass[i] * av.segment<3>(3 * i).squaredNorm();
+    weight += model.mass[i] * model.mass[i];
+  }
+  weight *= model.gravity.squaredNorm();
+  return 100.0 * std::numeric_limits<double>::epsilon() *
+         (std::sqrt(momentum) + bh * (std::sqrt(weight) + springForceScale(model)));
+}
+
+double energyRoundOff(const Model& model, double bh, const VecX& av) {
+  if (model.numNodes() == 0) return 0.0;
+  const double m_min = *std::min_element(model.mass.begin(), model.mass.end());
+  if (!(m_min > 0.0)) return 0.0;
+  double momentum_sq = 0.0;  // |av|_M^2 = 2 x kinetic energy
+  for (int i = 0; i < model.numNodes(); ++i) {
+    momentum_sq += model.mass[i] * av.segment<3>(3 * i).squaredNorm();
+  }
+  const double r = residualRoundOff(model, bh, av);
+  return std::sqrt(momentum_sq / m_min) * r + 0.5 * r * r / m_min;
 }
 
 }  // namespace cloth_sim

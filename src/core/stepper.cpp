@@ -289,16 +289,8 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
   // ||g|| is only known to the round-off of its terms (M v, and b h f with an
   // error of about eps k L per spring): at rest g0 itself is round-off, and a
   // target relative to it alone could never be met.
-  double momentum = 0.0, weight = 0.0;
-  for (int i = 0; i < model.numNodes(); ++i) {
-    momentum += model.mass[i] * model.mass[i] * av_.segment<3>(3 * i).squaredNorm();
-    weight += model.mass[i] * model.mass[i];
-  }
-  weight *= model.gravity.squaredNorm();
-  const double round_off =
-      100.0 * std::numeric_limits<double>::epsilon() *
-      (std::sqrt(momentum) + bh * (std::sqrt(weight) + springForceScale(model)));
-  const double target = std::max(settings_.newton_tolerance * g0, round_off);
+  const double target =
+      std::max(settings_.newton_tolerance * g0, residualRoundOff(model, bh, av_));
   stats.linear_converged = true;
   int it = 0;
   bool decrement_reached = false;

@@ -292,12 +292,13 @@ TEST_P(HardCase, PassesOrFailsLoudly) {
     ASSERT_TRUE(stats.newton_converged || (stats.linearized > 0 && bounds.max_linearized > 0))
         << "step " << n << ": " << stats.failure;
 
-    // Energy: without inputs it never increases (to round-off); with moving
-    // pins or stiffness events it stays below the initial energy plus the
-    // work they did.
+    // Energy: without inputs it never increases (to round-off: the scale's
+    // fraction, or what the step's round-off can move, which is larger only
+    // for stiff cloth at rest); with moving pins or stiffness events it stays
+    // below the initial energy plus the work they did.
     if (bounds.inputs == "none") {
       ASSERT_EQ(sim.totalWorkIn(), 0.0);
-      ASSERT_LE(stats.energy - previous, kStepEnergyTolerance * scale)
+      ASSERT_LE(stats.energy - previous, kStepEnergyTolerance * scale + stats.energy_round_off)
           << "energy increased at step " << n << " t = " << sim.time();
     }
     ASSERT_LE(stats.energy, e0 + sim.totalWorkIn() + kRunEnergyTolerance * scale0)
