@@ -7,6 +7,7 @@
 
 #include "cloth_sim/json_text.hpp"
 #include "cloth_sim/linear_solver.hpp"
+#include "cloth_sim/scene.hpp"
 #include "cloth_sim/simulation.hpp"
 
 namespace cloth_sim {
@@ -137,6 +138,49 @@ INSTANTIATE_TEST_SUITE_P(
                       StiffCase{1e7, 1.0 / 60.0, Method::Newton},
                       StiffCase{1e9, 1.0 / 30.0, Method::Newton},
                       StiffCase{1e9, 1.0 / 30.0, Method::Bdf2}));
+
+const std::string kHardDir = std::string(CLOTH_SIM_SOURCE_DIR) + "/config/scenes/hard/";
+
+// A stiff cloth come to rest: hard case 4 (a 13 x 13 cloth snapping back
+// from 3x stretch) at stretch 1e8 under newton, dt 0.01. At rest its energy
+// is ~1e-17 J and moves by as much a step at round-off; the energy check
+// allowed 1e-18 J (1e-6 of the scale's floor), rejected 400 sub-steps from
+// t = 0.05 s and failed at t = 0.12 s. The check now forgives what the step's
+// round-off can move (energyRoundOff), and the cloth rests.
+TEST(StiffClothAtRest, IsNotRejectedForRoundOff) {
+  Simulation sim(loadScene(kHardDir + "04_stretched_start.yaml",
+                           {"solver.method=newton", "solver.dt=0.01",
+                            "springs.stretch.stiffness=1e8"}));
+  for (int n = 0; n < 30; ++n) {
+    const StepStats s = sim.step();
+    ASSERT_TRUE(s.ok) << "step " << n << ": " << s.failure;
+    ASSERT_TRUE(s.finite);
+    if (n >= 3) {  // the snap-back is over
+      ASSERT_EQ(s.rejected, 0) << "step " << n << ": " << s.failure;
+      ASSERT_LT(s.energy, 1e-12) << "step " << n;
+      ASSERT_LE(s.energy_round_off, 1e-10) << "step " << n;  // a bound at rest, not a licence
+    }
+  }
+  EXPECT_LT(sim.maxStrain(), 1e-6);
+}
+
+// Hard case 5b (collapsed to a point) at stretch 1e7, dt 0.1 under newton:
+// Newton cannot converge from zero-length springs, and at the deepest
+// halving (dt/256) the linearized step gained 5.7e6 J, so the run failed at
+// its first step. That step is now solved on under the energy check
+// (refine), as implicit_euler does, and the cloth unfolds.
+TEST(CollapsedStart, DeepestHalvingIsRefinedNotFailed) {
+  Simulation sim(loadScene(kHardDir + "05b_collapsed_start.yaml",
+                           {"solver.method=newton", "solver.dt=0.1",
+                            "springs.stretch.stiffness=1e7"}));
+  const double e0 = sim.energy();
+  const StepStats s = sim.step();
+  ASSERT_TRUE(s.ok) << s.failure;
+  EXPECT_TRUE(s.finite);
+  EXPECT_GE(s.linearized, 1);  // reported, as every linearized sub-step
+  EXPECT_LT(s.energy, e0);
+  EXPECT_LT(sim.maxStrain(), 0.1);
+}
 
 }  // namespace
 }  // namespace cloth_sim
