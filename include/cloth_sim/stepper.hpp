@@ -60,7 +60,8 @@ class Stepper {
   /// it for implicit_euler's refined steps, which are accepted on the
   /// energy, not on a Newton tolerance.
   void setDecrementStop(double joules) { decrement_stop_ = joules; }
-  /// Caps Newton's iterations below newton_max_iterations (0: no cap).
+  /// Newton's iterations in place of newton_max_iterations (0: that);
+  /// the recovery's refined steps set it.
   void setIterationCap(int cap) { iteration_cap_ = cap; }
   /// Newton also stops at the first iterate (x1, v1) that `accept` takes
   /// (the recovery's energy check for a refined step) once its decrement is

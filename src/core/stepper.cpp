@@ -136,8 +136,7 @@ StepStats Stepper::runMethod(const Model& model, double h, const History& histor
       break;
     case Method::Newton:
       stats = newtonSolve(model, h, 1.0, x, v,
-                          iteration_cap_ > 0 ? std::min(iteration_cap_, settings_.newton_max_iterations)
-                                             : settings_.newton_max_iterations,
+                          iteration_cap_ > 0 ? iteration_cap_ : settings_.newton_max_iterations,
                           x, v);
       break;
     case Method::Bdf2:
