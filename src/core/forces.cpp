@@ -151,27 +151,45 @@ double springForceScale(const Model& model) {
   return std::sqrt(sum);
 }
 
-double residualRoundOff(const Model& model, double bh, const VecX& av) {
-  double momentum = 0.0, weight = 0.0;
+namespace {
+
+/// The node sums both round-off figures need, in one pass over the nodes.
+struct RoundOffTerms {
+  double momentum_sq = 0.0;  ///< sum m^2 |av|^2 = |M av|^2
+  double mass_sq = 0.0;      ///< sum m^2
+  double kinetic2 = 0.0;     ///< sum m |av|^2 = |av|_M^2
+  double m_min = std::numeric_limits<double>::infinity();
+};
+
+RoundOffTerms roundOffTerms(const Model& model, const VecX& av) {
+  RoundOffTerms t;
   for (int i = 0; i < model.numNodes(); ++i) {
-    momentum += model.mass[i] * model.mass[i] * av.segment<3>(3 * i).squaredNorm();
-    weight += model.mass[i] * model.mass[i];
+    const double m = model.mass[i], v2 = av.segment<3>(3 * i).squaredNorm();
+    t.momentum_sq += m * m * v2;
+    t.mass_sq += m * m;
+    t.kinetic2 += m * v2;
+    t.m_min = std::min(t.m_min, m);
   }
-  weight *= model.gravity.squaredNorm();
+  return t;
+}
+
+double residualRoundOff(const Model& model, double bh, const RoundOffTerms& t) {
   return 100.0 * std::numeric_limits<double>::epsilon() *
-         (std::sqrt(momentum) + bh * (std::sqrt(weight) + springForceScale(model)));
+         (std::sqrt(t.momentum_sq) +
+          bh * (std::sqrt(t.mass_sq * model.gravity.squaredNorm()) + springForceScale(model)));
+}
+
+}  // namespace
+
+double residualRoundOff(const Model& model, double bh, const VecX& av) {
+  return residualRoundOff(model, bh, roundOffTerms(model, av));
 }
 
 double energyRoundOff(const Model& model, double bh, const VecX& av) {
-  if (model.numNodes() == 0) return 0.0;
-  const double m_min = *std::min_element(model.mass.begin(), model.mass.end());
-  if (!(m_min > 0.0)) return 0.0;
-  double momentum_sq = 0.0;  // |av|_M^2 = 2 x kinetic energy
-  for (int i = 0; i < model.numNodes(); ++i) {
-    momentum_sq += model.mass[i] * av.segment<3>(3 * i).squaredNorm();
-  }
-  const double r = residualRoundOff(model, bh, av);
-  return std::sqrt(momentum_sq / m_min) * r + 0.5 * r * r / m_min;
+  const RoundOffTerms t = roundOffTerms(model, av);
+  if (!(t.m_min > 0.0) || !std::isfinite(t.m_min)) return 0.0;  // no nodes, or massless
+  const double r = residualRoundOff(model, bh, t);
+  return std::sqrt(t.kinetic2 / t.m_min) * r + 0.5 * r * r / t.m_min;
 }
 
 }  // namespace cloth_sim

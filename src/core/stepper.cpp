@@ -3,7 +3,6 @@
 #include <chrono>
 #include <cmath>
 #include <algorithm>
-#include <limits>
 
 #include "cloth_sim/forces.hpp"
 
