@@ -205,10 +205,23 @@ constexpr double kAutoJacobiLimit = 5.0e4;
 /// solve costs less: 300 block-Jacobi iterations on the 20 x 20 and 24 x 24 cloths).
 constexpr int kAutoJacobiIterations = 400;
 constexpr int kAutoCholeskyNodes = 4096;
+/// How many iterations a solve with the cheap guess `cheap` gets before it
+/// goes on with the stronger preconditioner: kAutoJacobiIterations for block
+/// Jacobi; for multigrid where the stronger one is cholesky, 2 sqrt(n) for n
+/// nodes, about where the factor starts to cost less. A V-cycle costs as
+/// much as several block-Jacobi iterations, and on a stiff cloth multigrid's
+/// iterations grow with the stiffness while the factor's stay at 7-11.
+/// Measured (2026-11-25, ms a step, implicit_euler CG 1e-6, multigrid /
+/// cholesky): a 20 x 20 cloth with stretch springs only, stretch 1e4, dt
+/// 1/240: 35 V-cycles, 1.1 / 0.53; 40 x 40, 1/240: 79, 8.6 / 5.2; 64 x 64,
+/// 1/240: 121, 32 / 24; 40 x 40 stretch 1e5 dt 1/60: 494, 57 / 14; hang32
+/// (shear and bend too) stretch 1e5 dt 1/60: 179, 24 / 27; dt 1/250: 28,
+/// 3.9 / 7.5.
+int autoTrialIterations(const Model& model, Preconditioner cheap);
 
 /// `auto` across steps: the cheap guess (block Jacobi or multigrid,
 /// cheapPreconditioner) where it pays. A solve with it that runs past
-/// kAutoJacobiIterations goes on with the stronger preconditioner (no step is
+/// autoTrialIterations goes on with the stronger preconditioner (no step is
 /// rejected for the guess). After kAutoEscalations attempts in a row did so,
 /// the stronger one is used from the start for every step at least half that
 /// stiff (kappa), and the guess is tried again after kAutoReprobeAttempts attempts, or on a cloth

@@ -247,6 +247,14 @@ Preconditioner cheapPreconditioner(const Model& model) {
                                                          : Preconditioner::BlockJacobi;
 }
 
+int autoTrialIterations(const Model& model, Preconditioner cheap) {
+  if (cheap != Preconditioner::Multigrid ||
+      strongerPreconditioner(model) != Preconditioner::Cholesky) {
+    return kAutoJacobiIterations;
+  }
+  return static_cast<int>(std::lround(2.0 * std::sqrt(static_cast<double>(model.numNodes()))));
+}
+
 Preconditioner AutoPreconditioner::choose(Preconditioner requested, const Model& model,
                                           double h) {
   if (requested != Preconditioner::Auto) return requested;

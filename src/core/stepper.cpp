@@ -23,7 +23,8 @@ CgResult Stepper::solveLinear(const Model& model, const VecX& b, VecX& x, double
   if (!(tolerance > 0.0)) tolerance = settings_.tolerance;
   const bool trial = settings_.preconditioner == Preconditioner::Auto &&
                      preconditioner_ != strongerPreconditioner(model);
-  const int cap = trial ? std::min(settings_.max_iterations, kAutoJacobiIterations)
+  const int cap = trial ? std::min(settings_.max_iterations,
+                                   autoTrialIterations(model, preconditioner_))
                         : settings_.max_iterations;
   CgResult cg = conjugateGradient(A_, model.springs, filter_, b, x, preconditioner_,
                                   tolerance, cap, cg_);
