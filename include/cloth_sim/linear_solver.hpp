@@ -200,9 +200,10 @@ constexpr int kAutoMultigridNodes = 144;
 /// stretch 1e6, kappa 5e5: thousands of iterations; at 5e4 stretch, kappa
 /// 26000, still 220 and cheaper than the factor).
 constexpr double kAutoJacobiLimit = 5.0e4;
-/// A solve with the cheap guess that has not converged after this many
+/// A solve with a block-Jacobi guess that has not converged after this many
 /// iterations goes on with the stronger preconditioner (about where a cholesky
-/// solve costs less: 300 block-Jacobi iterations on the 20 x 20 and 24 x 24 cloths).
+/// solve costs less: 300 block-Jacobi iterations on the 20 x 20 and 24 x 24
+/// cloths). A multigrid guess gets fewer: autoTrialIterations.
 constexpr int kAutoJacobiIterations = 400;
 constexpr int kAutoCholeskyNodes = 4096;
 /// How many iterations a solve with the cheap guess `cheap` gets before it
