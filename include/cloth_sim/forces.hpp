@@ -12,15 +12,25 @@ namespace cloth_sim {
 /// Parameters of spring s under the model's current group settings.
 SpringParams springParams(const Model& model, const Spring& s);
 
-/// f = m g - c_air v + spring forces (3n).
-void computeForces(const Model& model, const VecX& x, const VecX& v, VecX& f);
+/// f = m g - c_air v + spring forces (3n). `damping_axes` (one unit vector
+/// per spring, or null): along-spring damping acts along these instead of
+/// the springs' current axes (Newton's frozen axes, see Stepper).
+void computeForces(const Model& model, const VecX& x, const VecX& v, VecX& f,
+                   const std::vector<Vec3>* damping_axes = nullptr);
 
 /// Fills A = M - a df/dv - b df/dx (pinned rows are handled by the solver),
 /// and in the same spring loop f(x, v) and, if w is given, df/dx * w.
 /// Also accumulates A's block diagonal for the preconditioner.
+/// `damping_axes` as in computeForces: A's damping is then a c w w^T, exact
+/// (the force is linear in v and does not depend on x).
 void assembleSystem(const Model& model, const VecX& x, const VecX& v, double a, double b,
                     bool project_compression, SystemMatrix& A, VecX& f,
-                    const VecX* w = nullptr, VecX* dfdx_w = nullptr);
+                    const VecX* w = nullptr, VecX* dfdx_w = nullptr,
+                    const std::vector<Vec3>* damping_axes = nullptr);
+
+/// Each spring's current unit axis (d / |d|, or its rest direction when
+/// degenerate) at positions x, into axes (one per spring).
+void springAxes(const Model& model, const VecX& x, std::vector<Vec3>& axes);
 
 /// Energy parts and max strain of a state, in one pass over the springs.
 struct EnergyParts {

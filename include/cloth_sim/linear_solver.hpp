@@ -9,6 +9,11 @@
 // axis u and isotropically), stored as those 5 numbers with its two node
 // indices: 48 bytes a spring, read once per CG product (a full 3x3 block and
 // the ends took 80), and less to write in the assembly.
+//
+// Newton's along-spring damping acts along an axis frozen over the step
+// (newtonSolve), which can differ from the spring's current axis: it adds a
+// second outer product c w w^T, kept apart (setDampingAxis) so matrices
+// without it keep the 48-byte coupling and its single loop.
 #pragma once
 
 #include <Eigen/Sparse>
@@ -43,6 +48,17 @@ class SystemMatrix {
     c.u[2] = u[2];
     full_diag_valid_ = false;
   }
+  /// Adds damping c w w^T (w unit) to spring k's block: the along-spring
+  /// damping of a frozen axis w. Kept until reset().
+  void setDampingAxis(int spring, double damping, const Vec3& w) {
+    DampingAxis& d = damping_[spring];
+    d.c = damping;
+    d.w[0] = w[0];
+    d.w[1] = w[1];
+    d.w[2] = w[2];
+    has_damping_axes_ = true;
+    full_diag_valid_ = false;
+  }
   /// Adds a symmetric block to node i's diagonal (a contact's friction
   /// Jacobian): couplings beyond the spring list, kept until reset().
   void addNodeBlock(int node, const Mat3& block) {
@@ -57,8 +73,16 @@ class SystemMatrix {
   SymBlock couplingBlock(int spring) const {
     const Coupling& c = coupling_[spring];
     const double a = c.axis;
-    return {{c.iso + a * c.u[0] * c.u[0], c.iso + a * c.u[1] * c.u[1], c.iso + a * c.u[2] * c.u[2],
-             a * c.u[0] * c.u[1], a * c.u[0] * c.u[2], a * c.u[1] * c.u[2]}};
+    SymBlock S{{c.iso + a * c.u[0] * c.u[0], c.iso + a * c.u[1] * c.u[1],
+                c.iso + a * c.u[2] * c.u[2], a * c.u[0] * c.u[1], a * c.u[0] * c.u[2],
+                a * c.u[1] * c.u[2]}};
+    if (has_damping_axes_) {
+      const DampingAxis& d = damping_[spring];
+      const double e = d.c;
+      S.addScaled(1.0, {{e * d.w[0] * d.w[0], e * d.w[1] * d.w[1], e * d.w[2] * d.w[2],
+                         e * d.w[0] * d.w[1], e * d.w[0] * d.w[2], e * d.w[1] * d.w[2]}});
+    }
+    return S;
   }
 
   /// y = S A x, S the filter (eliminated rows zero, projected rows projected;
@@ -78,8 +102,16 @@ class SystemMatrix {
     double iso, axis;
     double u[3];
   };
+  struct DampingAxis {
+    double c;
+    double w[3];
+  };
+  template <bool kDampingAxes>
+  void addCouplings(const double* x, double* y) const;
   std::vector<double> node_scale_;  ///< node block = node_scale_ * I
   std::vector<Coupling> coupling_;
+  std::vector<DampingAxis> damping_;  ///< setDampingAxis; read when has_damping_axes_
+  bool has_damping_axes_ = false;
   std::vector<std::pair<int, SymBlock>> node_blocks_;  ///< extra node blocks (addNodeBlock)
   mutable std::vector<SymBlock> full_diag_;
   mutable bool full_diag_valid_ = false;

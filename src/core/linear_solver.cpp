@@ -9,12 +9,14 @@ namespace cloth_sim {
 void SystemMatrix::resize(int num_nodes, int num_springs) {
   node_scale_.resize(num_nodes);
   coupling_.resize(num_springs);
+  damping_.resize(num_springs);
   full_diag_valid_ = false;
 }
 
 void SystemMatrix::reset(const std::vector<double>& mass, double extra_diagonal) {
   for (size_t i = 0; i < node_scale_.size(); ++i) node_scale_[i] = mass[i] + extra_diagonal;
   node_blocks_.clear();
+  has_damping_axes_ = false;
   full_diag_valid_ = false;
 }
 
@@ -40,6 +42,35 @@ void SystemMatrix::multiply(const ConstraintFilter& filter, const VecX& x_in, Ve
   filter.apply(y_out);
 }
 
+template <bool kDampingAxes>
+void SystemMatrix::addCouplings(const double* __restrict x, double* __restrict y) const {
+  // S d = iso d + axis (u.d) u (+ c (w.d) w), d = x_i - x_j.
+  for (size_t k = 0; k < coupling_.size(); ++k) {
+    const Coupling& c = coupling_[k];
+    const double* xi = x + 3 * c.i;
+    const double* xj = x + 3 * c.j;
+    const double d0 = xi[0] - xj[0], d1 = xi[1] - xj[1], d2 = xi[2] - xj[2];
+    const double a = c.axis * (c.u[0] * d0 + c.u[1] * d1 + c.u[2] * d2);
+    double t0 = c.iso * d0 + a * c.u[0], t1 = c.iso * d1 + a * c.u[1],
+           t2 = c.iso * d2 + a * c.u[2];
+    if constexpr (kDampingAxes) {
+      const DampingAxis& w = damping_[k];
+      const double e = w.c * (w.w[0] * d0 + w.w[1] * d1 + w.w[2] * d2);
+      t0 += e * w.w[0];
+      t1 += e * w.w[1];
+      t2 += e * w.w[2];
+    }
+    double* yi = y + 3 * c.i;
+    double* yj = y + 3 * c.j;
+    yi[0] += t0;
+    yi[1] += t1;
+    yi[2] += t2;
+    yj[0] -= t0;
+    yj[1] -= t1;
+    yj[2] -= t2;
+  }
+}
+
 void SystemMatrix::multiplyAll(const VecX& x_in, VecX& y_out) const {
   const int n = numNodes();
   y_out.resize(3 * n);
@@ -51,22 +82,10 @@ void SystemMatrix::multiplyAll(const VecX& x_in, VecX& y_out) const {
     y[3 * i + 1] = m * x[3 * i + 1];
     y[3 * i + 2] = m * x[3 * i + 2];
   }
-  // S d = iso d + axis (u.d) u, d = x_i - x_j.
-  for (const Coupling& c : coupling_) {
-    const double* xi = x + 3 * c.i;
-    const double* xj = x + 3 * c.j;
-    const double d0 = xi[0] - xj[0], d1 = xi[1] - xj[1], d2 = xi[2] - xj[2];
-    const double a = c.axis * (c.u[0] * d0 + c.u[1] * d1 + c.u[2] * d2);
-    const double t0 = c.iso * d0 + a * c.u[0], t1 = c.iso * d1 + a * c.u[1],
-                 t2 = c.iso * d2 + a * c.u[2];
-    double* yi = y + 3 * c.i;
-    double* yj = y + 3 * c.j;
-    yi[0] += t0;
-    yi[1] += t1;
-    yi[2] += t2;
-    yj[0] -= t0;
-    yj[1] -= t1;
-    yj[2] -= t2;
+  if (has_damping_axes_) {
+    addCouplings<true>(x, y);
+  } else {
+    addCouplings<false>(x, y);
   }
   for (const auto& [node, block] : node_blocks_) {
     y_out.segment<3>(3 * node) += block * Vec3(x_in.segment<3>(3 * node));

@@ -141,7 +141,7 @@ double Simulation::energyScale() const {
 double Simulation::pinWork(const VecX& x1, const VecX& v1, double h) {
   // Reaction at the end of the step times the pins' travel (static pins do
   // no work).
-  computeForces(model_, x1, v1, force_);
+  computeForces(model_, x1, v1, force_, stepper_.dampingAxes());
   double work = 0.0;
   for (int node : pin_ends_.nodes) {
     const Vec3 reaction =

@@ -16,6 +16,12 @@ constexpr double kMaxForcing = 0.1;
 double secondsSince(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
+bool hasSpringDamping(const Model& model) {
+  for (const SpringGroup& g : model.groups) {
+    if (g.damping != 0.0 && g.end > g.begin) return true;
+  }
+  return false;
+}
 
 }  // namespace
 
@@ -179,6 +185,7 @@ StepStats Stepper::bdf2(const Model& model, double h, const History& history, Ve
 
 StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v) {
   StepStats stats;
+  axes_frozen_ = false;  // one linear solve: its damping axes are x0's
   const int n = model.numNodes();
   auto t0 = Clock::now();
   if (!pins_->directions.empty()) av_ = v, bh_ = h;  // constraintImpulses
@@ -237,7 +244,7 @@ StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v)
 double Stepper::residual(const Model& model, double bh, const VecX& ax, const VecX& av,
                          const VecX& v1, VecX& x1, VecX& g) {
   x1 = ax + bh * v1;
-  computeForces(model, x1, v1, f_);
+  computeForces(model, x1, v1, f_, dampingAxes());
   return residualFromForces(model, bh, av, v1, f_, g);
 }
 
@@ -279,9 +286,23 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
   // Every iterate's forces come from one evaluation: the assembly gives f at
   // the start, the line search's accepted trial the g of the next iterate.
   auto t0 = Clock::now();
+  // Along-spring damping's axes, held over the step (see the header): the
+  // step start's for backward Euler (x is still x0 here; ax may alias it),
+  // the first iterate's for bdf2 and the trapezoidal rule. Not in the
+  // recovery's refined steps (a decrement stop): those stop on the energy
+  // check, not on a Newton tolerance, and keep implicit_euler's answers.
+  axes_frozen_ = model.damping_model == DampingModel::AlongSpring && hasSpringDamping(model) &&
+                 decrement_stop_ == 0.0;
+  const bool axes_at_start = beta == 1.0;
+  if (axes_frozen_ && axes_at_start) springAxes(model, x, damping_axes_);
   x = ax_ + bh * v1;
-  assembleSystem(model, x, v1, bh, bh * bh, settings_.project_compression, A_, f_);
-  if (contact_on_) contact_.addFrictionJacobian(A_, bh);
+  if (axes_frozen_ && !axes_at_start) springAxes(model, x, damping_axes_);
+  auto assemble = [&] {
+    assembleSystem(model, x, v1, bh, bh * bh, settings_.project_compression, A_, f_, nullptr,
+                   nullptr, dampingAxes());
+    if (contact_on_) contact_.addFrictionJacobian(A_, bh);
+  };
+  assemble();
   const double g0 = residualFromForces(model, bh, av_, v1, f_, g_);
   double g_norm = g0;
   stats.assembly_s += secondsSince(t0);
@@ -297,8 +318,7 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
   while (g_norm > target && it < max_iterations && std::isfinite(g_norm)) {
     if (it > 0) {  // the first iterate was assembled above
       t0 = Clock::now();
-      assembleSystem(model, x, v1, bh, bh * bh, settings_.project_compression, A_, f_);
-      if (contact_on_) contact_.addFrictionJacobian(A_, bh);
+      assemble();
       stats.assembly_s += secondsSince(t0);
     }
     t0 = Clock::now();
@@ -351,7 +371,7 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
     // its spring forces with the square of the sag, so only tiny steps lower
     // ||g||, while the potential, which delta descends, lets Newton move.
     t0 = Clock::now();
-    const double slope = g_.dot(delta_);  // d(potential)/d(alpha) at 0, up to damping
+    const double slope = g_.dot(delta_);  // d(potential)/d(alpha) at 0
     const bool last = -0.5 * slope <= decrement_stop_;  // nothing left worth a solve
     double phi = NAN;                     // potential at alpha = 0, when first needed
     double alpha = 1.0, best_norm = INFINITY;
@@ -401,7 +421,7 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
     }
   }
   if (contact_on_) {  // reaction = M (v1 - av) - b h f(x1, v1), friction left out
-    computeForces(model, x, v1, f_);
+    computeForces(model, x, v1, f_, dampingAxes());
     reaction_.resize(v1.size());
     for (int i = 0; i < model.numNodes(); ++i) {
       reaction_.segment<3>(3 * i) = model.mass[i] * (v1.segment<3>(3 * i) - av_.segment<3>(3 * i)) -
@@ -413,7 +433,7 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
 }
 
 void Stepper::constraintImpulses(const Model& model, const VecX& x1, const VecX& v1, VecX* out) {
-  computeForces(model, x1, v1, f_);
+  computeForces(model, x1, v1, f_, dampingAxes());
   out->resize(v1.size());
   for (int i = 0; i < model.numNodes(); ++i) {
     out->segment<3>(3 * i) = model.mass[i] * (v1.segment<3>(3 * i) - av_.segment<3>(3 * i)) -
@@ -426,7 +446,8 @@ double Stepper::incrementalPotential(const Model& model, double bh, const VecX& 
   double phi = elasticEnergy(model, x1) + gravityEnergy(model, x1);
   double dissipation = 0.5 * model.air_drag * v1.squaredNorm();
   const bool along = model.damping_model == DampingModel::AlongSpring;
-  for (const Spring& s : model.springs) {
+  for (size_t k = 0; k < model.springs.size(); ++k) {
+    const Spring& s = model.springs[k];
     const double c = model.groups[static_cast<int>(s.type)].damping;
     if (c == 0.0) continue;
     const Vec3 dv = v1.segment<3>(3 * s.j) - v1.segment<3>(3 * s.i);
@@ -434,9 +455,13 @@ double Stepper::incrementalPotential(const Model& model, double bh, const VecX& 
       dissipation += 0.5 * c * dv.squaredNorm();
       continue;
     }
-    const Vec3 d = x1.segment<3>(3 * s.j) - x1.segment<3>(3 * s.i);
-    const double l = d.norm();
-    const Vec3 u = springDirection(d, l, s.rest_length, s.rest_direction);
+    Vec3 u;
+    if (axes_frozen_) {
+      u = damping_axes_[k];
+    } else {
+      const Vec3 d = x1.segment<3>(3 * s.j) - x1.segment<3>(3 * s.i);
+      u = springDirection(d, d.norm(), s.rest_length, s.rest_direction);
+    }
     const double along_dv = dv.dot(u);
     dissipation += 0.5 * c * along_dv * along_dv;
   }
@@ -449,6 +474,7 @@ double Stepper::incrementalPotential(const Model& model, double bh, const VecX& 
 
 StepStats Stepper::symplecticEuler(const Model& model, double h, VecX& x, VecX& v) {
   StepStats stats;
+  axes_frozen_ = false;
   auto t0 = Clock::now();
   computeForces(model, x, v, f_);
   for (int i = 0; i < model.numNodes(); ++i) {

@@ -153,5 +153,56 @@ TEST(Assembly, MatchesPerSpringForcesAndJacobians) {
   }
 }
 
+// Newton's steppers hold along-spring damping on the axes of the step's start
+// (Stepper::newtonSolve): the force is then linear in v and its damping does
+// not depend on x, so the assembled A = M - a df/dv - b df/dx is exactly the
+// derivative of the force, damping included (without projection). Checked
+// against central differences of computeForces on the same held axes, from
+// a state other than the one the axes came from.
+TEST(Assembly, HeldDampingAxesGiveTheExactDerivative) {
+  Scene s = test::hangingCloth(5);
+  s.damping_model = DampingModel::AlongSpring;
+  s.air_drag = 0.3;
+  const Model m = buildModel(s);
+  VecX x0, v0, x, v, w;
+  test::perturbedState(m, 4, &x0, &v0);
+  test::perturbedState(m, 9, &x, &v, &w);
+  x.segment<3>(3 * 7) += Vec3(0.05, 0.02, -0.03);  // no zero-length spring: smooth for the differences
+  std::vector<Vec3> axes;
+  springAxes(m, x0, axes);
+  SystemMatrix A;
+  VecX f, f_ref, Aw;
+  const double a = 0.01, b = 1e-4;
+  assembleSystem(m, x, v, a, b, /*project_compression=*/false, A, f, nullptr, nullptr, &axes);
+  computeForces(m, x, v, f_ref, &axes);
+  EXPECT_LE((f - f_ref).norm(), 1e-12 * f_ref.norm());
+  // The held axes change the force: this is not the plain one.
+  VecX f_plain;
+  computeForces(m, x, v, f_plain);
+  EXPECT_GT((f - f_plain).norm(), 1e-6 * f.norm());
+  A.multiplyAll(w, Aw);
+  const double eps = 1e-6;
+  VecX fp, fm, dfdv_w, dfdx_w;
+  computeForces(m, x, v + eps * w, fp, &axes);
+  computeForces(m, x, v - eps * w, fm, &axes);
+  dfdv_w = (fp - fm) / (2 * eps);
+  computeForces(m, x + eps * w, v, fp, &axes);
+  computeForces(m, x - eps * w, v, fm, &axes);
+  dfdx_w = (fp - fm) / (2 * eps);
+  VecX expected = -a * dfdv_w - b * dfdx_w;
+  for (int i = 0; i < m.numNodes(); ++i) expected.segment<3>(3 * i) += m.mass[i] * w.segment<3>(3 * i);
+  EXPECT_LE((Aw - expected).norm(), 1e-7 * expected.norm());
+  // The Cholesky and multigrid read A through its blocks: they agree with the product.
+  VecX Aw_blocks = VecX::Zero(x.size());
+  for (int i = 0; i < m.numNodes(); ++i) Aw_blocks.segment<3>(3 * i) = A.fullDiag(i) * w.segment<3>(3 * i);
+  for (size_t k = 0; k < m.springs.size(); ++k) {
+    const Spring& sp = m.springs[k];
+    const Mat3 S = A.coupling(static_cast<int>(k));
+    Aw_blocks.segment<3>(3 * sp.i) -= S * w.segment<3>(3 * sp.j);
+    Aw_blocks.segment<3>(3 * sp.j) -= S * w.segment<3>(3 * sp.i);
+  }
+  EXPECT_LE((Aw_blocks - Aw).norm(), 1e-12 * Aw.norm());
+}
+
 }  // namespace
 }  // namespace cloth_sim
