@@ -100,17 +100,19 @@ class Stepper {
   /// Solves x1 = ax + beta h v1, M (v1 - av) = beta h f(x1, v1) by Newton,
   /// from v1 = av, with a backtracking line search: backward Euler (beta = 1,
   /// a = (x0, v0)), BDF2 (beta = 2/3), the trapezoidal rule (beta = 1/2).
-  /// Along-spring damping acts along axes held over the step: the damping
-  /// force is then linear in v1, g is exactly the gradient of
+  /// Under the newton method, along-spring damping acts along the step start's axes,
+  /// held over the step (implicit_euler's linear step has them so too): the
+  /// damping force is then linear in v1, g is exactly the gradient of
   /// incrementalPotential and the assembled matrix its Hessian (with
   /// compression projected). With the axis turning inside the step neither
   /// held: Newton converged linearly and its line search stalled (the demo
-  /// cloth under newton: 17.6 iterations and 117 rejected steps in 2 s).
-  /// Backward Euler holds the step start's axes, as implicit_euler's linear
-  /// step does: off by O(h), first order like the method. bdf2 and its
-  /// trapezoidal start hold the first iterate's (ax + b h av), off by O(h^2)
-  /// so the order stays two; the step start's made its error-controlled
-  /// global error 7x the tolerance.
+  /// cloth under newton: 16.4 iterations a step and 52 rejected steps in
+  /// 1 s; 12.5 and 19 held). Off by O(h), first order like the method.
+  /// bdf2 (its backward-Euler retries too) keeps the turning axis, and so
+  /// do implicit_euler's refined steps: held at the start bdf2 lost its second
+  /// order (error-controlled global error 7x the tolerance), held at the
+  /// predicted end it rejected more steps than before on the contact and
+  /// self-collision hard cases (docs/stability.md).
   StepStats newtonSolve(const Model& model, double h, double beta, const VecX& ax,
                         const VecX& av, int max_iterations, VecX& x, VecX& v);
   /// Newton's merit function: 1/2 |v1 - av|_M^2 + U(x1) + b h R(v1), with U

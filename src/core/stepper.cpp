@@ -286,17 +286,15 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
   // Every iterate's forces come from one evaluation: the assembly gives f at
   // the start, the line search's accepted trial the g of the next iterate.
   auto t0 = Clock::now();
-  // Along-spring damping's axes, held over the step (see the header): the
-  // step start's for backward Euler (x is still x0 here; ax may alias it),
-  // the first iterate's for bdf2 and the trapezoidal rule. Not in the
-  // recovery's refined steps (a decrement stop): those stop on the energy
-  // check, not on a Newton tolerance, and keep implicit_euler's answers.
+  // Along-spring damping's axes, held over a newton step at the step
+  // start's (x is still x0 here; ax may alias it): see the header. Only
+  // for the newton method: implicit_euler's refined steps (a decrement
+  // stop; accepted on energy) and bdf2's backward-Euler retries keep the
+  // turning axis and their methods' answers.
   axes_frozen_ = model.damping_model == DampingModel::AlongSpring && hasSpringDamping(model) &&
-                 decrement_stop_ == 0.0;
-  const bool axes_at_start = beta == 1.0;
-  if (axes_frozen_ && axes_at_start) springAxes(model, x, damping_axes_);
+                 settings_.method == Method::Newton && beta == 1.0 && decrement_stop_ == 0.0;
+  if (axes_frozen_) springAxes(model, x, damping_axes_);
   x = ax_ + bh * v1;
-  if (axes_frozen_ && !axes_at_start) springAxes(model, x, damping_axes_);
   auto assemble = [&] {
     assembleSystem(model, x, v1, bh, bh * bh, settings_.project_compression, A_, f_, nullptr,
                    nullptr, dampingAxes());
