@@ -14,7 +14,7 @@ SpringParams springParams(const Model& model, const Spring& s);
 
 /// f = m g - c_air v + spring forces (3n). `damping_axes` (one unit vector
 /// per spring, or null): along-spring damping acts along these instead of
-/// the springs' current axes (Newton's frozen axes, see Stepper).
+/// the springs' current axes (newton's held axes, Stepper::newtonSolve).
 void computeForces(const Model& model, const VecX& x, const VecX& v, VecX& f,
                    const std::vector<Vec3>* damping_axes = nullptr);
 

@@ -10,7 +10,7 @@
 // indices: 48 bytes a spring, read once per CG product (a full 3x3 block and
 // the ends took 80), and less to write in the assembly.
 //
-// Newton's along-spring damping acts along an axis frozen over the step
+// Newton's along-spring damping acts along an axis held over the step
 // (newtonSolve), which can differ from the spring's current axis: it adds a
 // second outer product c w w^T, kept apart (setDampingAxis) so matrices
 // without it keep the 48-byte coupling and its single loop.
@@ -49,7 +49,7 @@ class SystemMatrix {
     full_diag_valid_ = false;
   }
   /// Adds damping c w w^T (w unit) to spring k's block: the along-spring
-  /// damping of a frozen axis w. Kept until reset().
+  /// damping of an axis w held over the step. Kept until reset().
   void setDampingAxis(int spring, double damping, const Vec3& w) {
     DampingAxis& d = damping_[spring];
     d.c = damping;

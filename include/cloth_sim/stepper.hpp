@@ -80,7 +80,7 @@ class Stepper {
   void constraintImpulses(const Model& model, const VecX& x1, const VecX& v1, VecX* out);
   /// The along-spring damping axes the last step's forces used, one per
   /// spring, or null where they were the springs' own (see newtonSolve).
-  const std::vector<Vec3>* dampingAxes() const { return axes_frozen_ ? &damping_axes_ : nullptr; }
+  const std::vector<Vec3>* dampingAxes() const { return axes_held_ ? &damping_axes_ : nullptr; }
 
  private:
   StepStats runMethod(const Model& model, double h, const History& history, VecX& x, VecX& v,
@@ -147,7 +147,7 @@ class Stepper {
   VecX x_best_, v_best_, g_best_;  ///< the line search's best trial
   VecX v_start_;                   ///< Newton's first iterate
   std::vector<Vec3> damping_axes_;  ///< along-spring damping axes held over a Newton step
-  bool axes_frozen_ = false;        ///< damping_axes_ hold for the last step
+  bool axes_held_ = false;        ///< damping_axes_ hold for the last step
   double decrement_stop_ = 0.0;    ///< setDecrementStop
   std::function<bool(const VecX&, const VecX&)> energy_stop_;  ///< setEnergyStop
   double energy_stop_decrement_ = 0.0;

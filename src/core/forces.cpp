@@ -84,7 +84,7 @@ void assembleSystem(const Model& model, const VecX& x, const VecX& v, double a, 
   const bool frozen = along && damping_axes;
   for (const SpringGroup& g : model.groups) {
     const double stiffness = g.stiffness, damping = g.damping;
-    // Damping adds a h c along the axis (frozen: along its own axis, below)
+    // Damping adds a h c along the axis (held: along its own axis, below)
     // or isotropically.
     const double damping_axis = along && !frozen ? a * damping : 0.0,
                  damping_iso = along ? 0.0 : a * damping;

@@ -185,7 +185,7 @@ StepStats Stepper::bdf2(const Model& model, double h, const History& history, Ve
 
 StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v) {
   StepStats stats;
-  axes_frozen_ = false;  // one linear solve: its damping axes are x0's
+  axes_held_ = false;  // one linear solve: its damping axes are x0's
   const int n = model.numNodes();
   auto t0 = Clock::now();
   if (!pins_->directions.empty()) av_ = v, bh_ = h;  // constraintImpulses
@@ -291,9 +291,9 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
   // for the newton method: implicit_euler's refined steps (a decrement
   // stop; accepted on energy) and bdf2's backward-Euler retries keep the
   // turning axis and their methods' answers.
-  axes_frozen_ = model.damping_model == DampingModel::AlongSpring && hasSpringDamping(model) &&
+  axes_held_ = model.damping_model == DampingModel::AlongSpring && hasSpringDamping(model) &&
                  settings_.method == Method::Newton && beta == 1.0 && decrement_stop_ == 0.0;
-  if (axes_frozen_) springAxes(model, x, damping_axes_);
+  if (axes_held_) springAxes(model, x, damping_axes_);
   x = ax_ + bh * v1;
   auto assemble = [&] {
     assembleSystem(model, x, v1, bh, bh * bh, settings_.project_compression, A_, f_, nullptr,
@@ -454,7 +454,7 @@ double Stepper::incrementalPotential(const Model& model, double bh, const VecX& 
       continue;
     }
     Vec3 u;
-    if (axes_frozen_) {
+    if (axes_held_) {
       u = damping_axes_[k];
     } else {
       const Vec3 d = x1.segment<3>(3 * s.j) - x1.segment<3>(3 * s.i);
@@ -472,7 +472,7 @@ double Stepper::incrementalPotential(const Model& model, double bh, const VecX& 
 
 StepStats Stepper::symplecticEuler(const Model& model, double h, VecX& x, VecX& v) {
   StepStats stats;
-  axes_frozen_ = false;
+  axes_held_ = false;
   auto t0 = Clock::now();
   computeForces(model, x, v, f_);
   for (int i = 0; i < model.numNodes(); ++i) {
