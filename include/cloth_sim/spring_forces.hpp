@@ -42,13 +42,18 @@ inline Vec3 springDirection(const Vec3& d, double l, double rest_length,
 
 /// Force on node i of a spring of length l along unit axis u (node j gets the
 /// negative): k (l - L) u plus damping of the ends' relative velocity dv =
-/// v_j - v_i, along u (along_axis) or whole. The one formula the per-spring
-/// and the whole-cloth loops share.
+/// v_j - v_i, along the unit axis w (along_axis; newton holds w over a step,
+/// else w = u) or whole. The one formula the per-spring and the whole-cloth
+/// loops share.
+inline Vec3 springForceOnI(double stiffness, double damping, bool along_axis, double l,
+                           double rest_length, const Vec3& u, const Vec3& dv, const Vec3& w) {
+  Vec3 f = stiffness * (l - rest_length) * u;
+  if (damping != 0.0) f += along_axis ? Vec3(damping * dv.dot(w) * w) : Vec3(damping * dv);
+  return f;
+}
 inline Vec3 springForceOnI(double stiffness, double damping, bool along_axis, double l,
                            double rest_length, const Vec3& u, const Vec3& dv) {
-  Vec3 f = stiffness * (l - rest_length) * u;
-  if (damping != 0.0) f += along_axis ? Vec3(damping * dv.dot(u) * u) : Vec3(damping * dv);
-  return f;
+  return springForceOnI(stiffness, damping, along_axis, l, rest_length, u, dv, u);
 }
 
 /// Unit axis of the spring (d / |d|, or rest_direction when degenerate) and |d|.

@@ -55,14 +55,9 @@ void computeForces(const Model& model, const VecX& x, const VecX& v, VecX& f,
       const Vec3 d = x.segment<3>(3 * s.j) - x.segment<3>(3 * s.i);
       const double l = d.norm();
       const Vec3 u = springDirection(d, l, s.rest_length, s.rest_direction);
-      const Vec3 dv = v.segment<3>(3 * s.j) - v.segment<3>(3 * s.i);
-      Vec3 fi;
-      if (along && damping_axes) {
-        const Vec3& w = (*damping_axes)[k];
-        fi = stiffness * (l - s.rest_length) * u + (damping * dv.dot(w)) * w;
-      } else {
-        fi = springForceOnI(stiffness, damping, along, l, s.rest_length, u, dv);
-      }
+      const Vec3& axis = damping_axes ? (*damping_axes)[k] : u;
+      const Vec3 fi = springForceOnI(stiffness, damping, along, l, s.rest_length, u,
+                                     v.segment<3>(3 * s.j) - v.segment<3>(3 * s.i), axis);
       f.segment<3>(3 * s.i) += fi;
       f.segment<3>(3 * s.j) -= fi;
     }
@@ -81,12 +76,12 @@ void assembleSystem(const Model& model, const VecX& x, const VecX& v, double a, 
   // Force and Jacobian share the axis: one pass, one sqrt per spring; one
   // loop per group (its constants hoisted).
   const bool along = model.damping_model == DampingModel::AlongSpring;
-  const bool frozen = along && damping_axes;
+  const bool held = along && damping_axes;
   for (const SpringGroup& g : model.groups) {
     const double stiffness = g.stiffness, damping = g.damping;
     // Damping adds a h c along the axis (held: along its own axis, below)
     // or isotropically.
-    const double damping_axis = along && !frozen ? a * damping : 0.0,
+    const double damping_axis = along && !held ? a * damping : 0.0,
                  damping_iso = along ? 0.0 : a * damping;
     for (int k = g.begin; k < g.end; ++k) {
       const Spring& s = model.springs[k];
@@ -100,15 +95,10 @@ void assembleSystem(const Model& model, const VecX& x, const VecX& v, double a, 
       double t = degenerate ? 0.0 : 1.0 - s.rest_length / l;
       if (project_compression) t = std::max(t, 0.0);
       const double k_iso = stiffness * t, k_axis = stiffness - k_iso;
-      const Vec3 dv = v.segment<3>(3 * s.j) - v.segment<3>(3 * s.i);
-      Vec3 fi;
-      if (frozen) {
-        const Vec3& wk = (*damping_axes)[k];
-        fi = stiffness * (l - s.rest_length) * u + (damping * dv.dot(wk)) * wk;
-        A.setDampingAxis(k, a * damping, wk);
-      } else {
-        fi = springForceOnI(stiffness, damping, along, l, s.rest_length, u, dv);
-      }
+      const Vec3& axis = held ? (*damping_axes)[k] : u;
+      const Vec3 fi = springForceOnI(stiffness, damping, along, l, s.rest_length, u,
+                                     v.segment<3>(3 * s.j) - v.segment<3>(3 * s.i), axis);
+      if (held) A.setDampingAxis(k, a * damping, axis);
       A.setCoupling(k, s.i, s.j, b * k_iso + damping_iso, b * k_axis + damping_axis, u);
       f.segment<3>(3 * s.i) += fi;
       f.segment<3>(3 * s.j) -= fi;

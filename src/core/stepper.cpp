@@ -136,6 +136,7 @@ StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
 StepStats Stepper::runMethod(const Model& model, double h, const History& history, VecX& x,
                              VecX& v, Method method) {
   StepStats stats;
+  axes_held_ = false;  // newtonSolve holds them where it should
   switch (method) {
     case Method::ImplicitEuler:
       stats = implicitEuler(model, h, x, v);
@@ -185,7 +186,6 @@ StepStats Stepper::bdf2(const Model& model, double h, const History& history, Ve
 
 StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v) {
   StepStats stats;
-  axes_held_ = false;  // one linear solve: its damping axes are x0's
   const int n = model.numNodes();
   auto t0 = Clock::now();
   if (!pins_->directions.empty()) av_ = v, bh_ = h;  // constraintImpulses
@@ -472,7 +472,6 @@ double Stepper::incrementalPotential(const Model& model, double bh, const VecX& 
 
 StepStats Stepper::symplecticEuler(const Model& model, double h, VecX& x, VecX& v) {
   StepStats stats;
-  axes_held_ = false;
   auto t0 = Clock::now();
   computeForces(model, x, v, f_);
   for (int i = 0; i < model.numNodes(); ++i) {
