@@ -1,19 +1,7 @@
-// The system matrix A = M - b h df/dv - b^2 h^2 df/dx of an implicit step,
-// stored per node (its mass block, a multiple of I) and per spring (one
-// symmetric 3x3 coupling block S, entering as A_ii += S, A_jj += S,
-// A_ij = A_ji = -S), so the sparsity pattern is the spring list: fixed,
-// refilled in place each step. Pinned DOFs are eliminated: the solve runs on
-// the free nodes only.
-//
-// A spring's S is iso I + axis u u^T (its stiffness and damping act along its
-// axis u and isotropically), stored as those 5 numbers with its two node
-// indices: 48 bytes a spring, read once per CG product (a full 3x3 block and
-// the ends took 80), and less to write in the assembly.
-//
-// Newton's along-spring damping acts along an axis held over the step
-// (newtonSolve), which can differ from the spring's current axis: it adds a
-// second outer product c w w^T, kept apart (setDampingAxis) so matrices
-// without it keep the 48-byte coupling and its single loop.
+// The implicit step's linear solve: preconditioned CG on the system matrix
+// (system_matrix.hpp), its preconditioners (block Jacobi, a sparse Cholesky
+// factor, multigrid) and `auto`'s choice among them. Pinned DOFs are
+// eliminated: the solve runs on the free nodes only.
 #pragma once
 
 #include <Eigen/Sparse>
@@ -25,97 +13,10 @@
 #include "cloth_sim/constraint_filter.hpp"
 #include "cloth_sim/model.hpp"
 #include "cloth_sim/multigrid.hpp"
+#include "cloth_sim/system_matrix.hpp"
 #include "cloth_sim/types.hpp"
 
 namespace cloth_sim {
-
-class SystemMatrix {
- public:
-  void resize(int num_nodes, int num_springs);
-  int numNodes() const { return static_cast<int>(node_scale_.size()); }
-  /// Sets the node blocks to mass_i * I (+ extra_diagonal * I). Couplings are
-  /// then set by setCoupling for every spring.
-  void reset(const std::vector<double>& mass, double extra_diagonal = 0.0);
-  /// Sets spring k's block S = iso I + axis u u^T (u unit).
-  void setCoupling(int spring, int i, int j, double iso, double axis, const Vec3& u) {
-    Coupling& c = coupling_[spring];
-    c.i = i;
-    c.j = j;
-    c.iso = iso;
-    c.axis = axis;
-    c.u[0] = u[0];
-    c.u[1] = u[1];
-    c.u[2] = u[2];
-    full_diag_valid_ = false;
-  }
-  /// Adds damping c w w^T (w unit) to spring k's block: the along-spring
-  /// damping of an axis w held over the step. Kept until reset().
-  void setDampingAxis(int spring, double damping, const Vec3& w) {
-    DampingAxis& d = damping_[spring];
-    d.c = damping;
-    d.w[0] = w[0];
-    d.w[1] = w[1];
-    d.w[2] = w[2];
-    has_damping_axes_ = true;
-    full_diag_valid_ = false;
-  }
-  /// Adds a symmetric block to node i's diagonal (a contact's friction
-  /// Jacobian): couplings beyond the spring list, kept until reset().
-  void addNodeBlock(int node, const Mat3& block) {
-    node_blocks_.emplace_back(node, SymBlock::from(block));
-    full_diag_valid_ = false;
-  }
-  const std::vector<std::pair<int, SymBlock>>& nodeBlocks() const { return node_blocks_; }
-  /// Node block without the couplings: nodeScale(i) * I.
-  double nodeScale(int node) const { return node_scale_[node]; }
-  Mat3 diag(int node) const { return node_scale_[node] * Mat3::Identity(); }
-  Mat3 coupling(int spring) const { return couplingBlock(spring).toMat3(); }
-  SymBlock couplingBlock(int spring) const {
-    const Coupling& c = coupling_[spring];
-    const double a = c.axis;
-    SymBlock S{{c.iso + a * c.u[0] * c.u[0], c.iso + a * c.u[1] * c.u[1],
-                c.iso + a * c.u[2] * c.u[2], a * c.u[0] * c.u[1], a * c.u[0] * c.u[2],
-                a * c.u[1] * c.u[2]}};
-    if (has_damping_axes_) {
-      const DampingAxis& d = damping_[spring];
-      const double e = d.c;
-      S.addScaled(1.0, {{e * d.w[0] * d.w[0], e * d.w[1] * d.w[1], e * d.w[2] * d.w[2],
-                         e * d.w[0] * d.w[1], e * d.w[0] * d.w[2], e * d.w[1] * d.w[2]}});
-    }
-    return S;
-  }
-
-  /// y = S A x, S the filter (eliminated rows zero, projected rows projected;
-  /// x is taken as given, so pass a filtered x for S A S x).
-  void multiply(const ConstraintFilter& filter, const VecX& x, VecX& y) const;
-  /// y = A x, unfiltered (contact reactions).
-  void multiplyAll(const VecX& x, VecX& y) const;
-  /// Full diagonal block of node i including its springs' couplings (summed
-  /// on first use after the couplings changed: only block Jacobi and Cholesky
-  /// need them).
-  Mat3 fullDiag(int node) const { return fullDiagonal()[node].toMat3(); }
-  const std::vector<SymBlock>& fullDiagonal() const;
-
- private:
-  struct Coupling {
-    int i, j;
-    double iso, axis;
-    double u[3];
-  };
-  struct DampingAxis {
-    double c;
-    double w[3];
-  };
-  template <bool kDampingAxes>
-  void addCouplings(const double* x, double* y) const;
-  std::vector<double> node_scale_;  ///< node block = node_scale_ * I
-  std::vector<Coupling> coupling_;
-  std::vector<DampingAxis> damping_;  ///< setDampingAxis; read when has_damping_axes_
-  bool has_damping_axes_ = false;
-  std::vector<std::pair<int, SymBlock>> node_blocks_;  ///< extra node blocks (addNodeBlock)
-  mutable std::vector<SymBlock> full_diag_;
-  mutable bool full_diag_valid_ = false;
-};
 
 struct CgResult {
   int iterations = 0;

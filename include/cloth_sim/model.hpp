@@ -2,9 +2,11 @@
 // triangles for rendering and export. Built once from a Scene.
 #pragma once
 
+#include <memory>
 #include <vector>
 
 #include "cloth_sim/scene.hpp"
+#include "cloth_sim/spring_layout.hpp"
 #include "cloth_sim/types.hpp"
 
 namespace cloth_sim {
@@ -33,6 +35,8 @@ struct Model {
   std::vector<double> mass;       ///< per node, kg
   std::vector<Spring> springs;    ///< grouped: all stretch, then shear, then bend
   std::array<SpringGroup, kNumSpringTypes> groups{};
+  /// The springs by direction (spring_layout.hpp), shared by copies.
+  std::shared_ptr<const SpringLayout> layout;
   DampingModel damping_model = DampingModel::AlongSpring;
   Vec3 gravity = Vec3::Zero();
   bool has_gravity = false;

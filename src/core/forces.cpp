@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 
+#include "cloth_sim/spring_sweeps.hpp"
+
 namespace cloth_sim {
 
 SpringParams springParams(const Model& model, const Spring& s) {
@@ -40,93 +42,135 @@ void springAxes(const Model& model, const VecX& x, std::vector<Vec3>& axes) {
   }
 }
 
+namespace {
+
+/// The sweeps' work arrays (x, v, w and the held axes by component, the
+/// padded per-slot terms, the sums by component), kept per thread so a step
+/// allocates nothing once sized.
+struct SweepBuffers {
+  std::vector<double> x, v, w, held, f, kw;
+  sweeps::PaddedTerms f_terms, kw_terms;
+};
+
+SweepBuffers& sweepBuffers() {
+  thread_local SweepBuffers buffers;
+  return buffers;
+}
+
+/// f(x, v) over the springs' directions, added to f (3n, the external
+/// forces); with A, A's couplings b K + a D too; with w, K w into dfdx_w.
+void springSweeps(const Model& model, const VecX& x, const VecX& v, double a, double b,
+                  bool project_compression, SystemMatrix* A, VecX& f, const VecX* w,
+                  VecX* dfdx_w, const std::vector<Vec3>* damping_axes) {
+  const SpringLayout& layout = *model.layout;
+  const int n = layout.num_nodes;
+  const size_t size = 3 * static_cast<size_t>(n);
+  SweepBuffers& buf = sweepBuffers();
+  buf.x.resize(size);
+  buf.v.resize(size);
+  buf.f.resize(size);
+  sweeps::splitComponents(x, buf.x.data());
+  sweeps::splitComponents(v, buf.v.data());
+  sweeps::splitComponents(f, buf.f.data());
+  if (w) {
+    buf.w.resize(size);
+    buf.kw.assign(size, 0.0);
+    sweeps::splitComponents(*w, buf.w.data());
+  }
+  const bool along = model.damping_model == DampingModel::AlongSpring;
+  const bool held = along && damping_axes;
+  if (held) {  // per spring to per slot: direction d's axes at held[3 d n + c n + node]
+    buf.held.resize(layout.directions.size() * size);
+    for (size_t k = 0; k < layout.slot.size(); ++k) {
+      const SpringSlot& s = layout.slot[k];
+      for (int c = 0; c < 3; ++c) buf.held[(3 * s.direction + c) * n + s.node] = (*damping_axes)[k][c];
+    }
+    if (A) A->useDampingAxes();
+  }
+  for (size_t d = 0; d < layout.directions.size(); ++d) {
+    const SpringDirection& dir = layout.directions[d];
+    const SpringGroup& g = model.groups[static_cast<int>(dir.type)];
+    sweeps::ForceSweepIn in;
+    in.slots = dir.slots;
+    in.offset = dir.offset;
+    for (int c = 0; c < 3; ++c) {
+      in.x[c] = buf.x.data() + c * n;
+      in.v[c] = buf.v.data() + c * n;
+      if (w) in.w[c] = buf.w.data() + c * n;
+      if (held) in.held[c] = buf.held.data() + (3 * d + c) * n;
+      in.rest_dir[c] = dir.rest_dir[c].data();
+    }
+    in.valid = dir.valid.data();
+    in.rest_length = dir.rest_length.data();
+    in.stiffness = g.stiffness;
+    in.damping = g.damping;
+    in.along = along;
+    in.project_compression = project_compression;
+    in.a = a;
+    in.b = b;
+    sweeps::ForceSweepOut out;
+    buf.f_terms.reset(n, dir.offset);
+    if (w) buf.kw_terms.reset(n, dir.offset);
+    for (int c = 0; c < 3; ++c) {
+      out.f[c] = buf.f_terms.term(c);
+      if (w) out.kw[c] = buf.kw_terms.term(c);
+    }
+    if (A) {
+      SystemMatrix::Coefficients& co = A->coefficients(static_cast<int>(d));
+      out.iso = co.iso.data();
+      out.axis = co.axis.data();
+      for (int c = 0; c < 3; ++c) out.u[c] = co.u[c].data();
+      if (held) {
+        out.c = co.c.data();
+        for (int c = 0; c < 3; ++c) out.hw[c] = co.w[c].data();
+      }
+    }
+    sweeps::forceSweep(in, out);
+    buf.f_terms.addDifferences(buf.f.data());
+    if (w) buf.kw_terms.addDifferences(buf.kw.data());
+  }
+  sweeps::joinComponents(buf.f.data(), n, f.data());
+  if (w) sweeps::joinComponents(buf.kw.data(), n, dfdx_w->data());
+}
+
+}  // namespace
+
 void computeForces(const Model& model, const VecX& x, const VecX& v, VecX& f,
                    const std::vector<Vec3>* damping_axes) {
   f.resize(x.size());
   addExternalForces(model, v, f);
-  // springForce's arithmetic, inlined: no SpringParams copy per spring (the
-  // Newton steppers call this several times a step); one loop per group, so
-  // its constants and the damping branch are hoisted.
-  const bool along = model.damping_model == DampingModel::AlongSpring;
-  for (const SpringGroup& g : model.groups) {
-    const double stiffness = g.stiffness, damping = g.damping;
-    for (int k = g.begin; k < g.end; ++k) {
-      const Spring& s = model.springs[k];
-      const Vec3 d = x.segment<3>(3 * s.j) - x.segment<3>(3 * s.i);
-      const double l = d.norm();
-      const Vec3 u = springDirection(d, l, s.rest_length, s.rest_direction);
-      const Vec3& axis = damping_axes ? (*damping_axes)[k] : u;
-      const Vec3 fi = springForceOnI(stiffness, damping, along, l, s.rest_length, u,
-                                     v.segment<3>(3 * s.j) - v.segment<3>(3 * s.i), axis);
-      f.segment<3>(3 * s.i) += fi;
-      f.segment<3>(3 * s.j) -= fi;
-    }
-  }
+  springSweeps(model, x, v, 0.0, 0.0, false, nullptr, f, nullptr, nullptr, damping_axes);
 }
 
 void assembleSystem(const Model& model, const VecX& x, const VecX& v, double a, double b,
                     bool project_compression, SystemMatrix& A, VecX& f, const VecX* w,
                     VecX* dfdx_w, const std::vector<Vec3>* damping_axes) {
-  const int n = model.numNodes();
-  A.resize(n, static_cast<int>(model.springs.size()));
+  A.resize(model.layout);
   A.reset(model.mass, a * model.air_drag);
   f.resize(x.size());
   addExternalForces(model, v, f);
-  if (dfdx_w) dfdx_w->setZero(x.size());
-  // Force and Jacobian share the axis: one pass, one sqrt per spring; one
-  // loop per group (its constants hoisted).
-  const bool along = model.damping_model == DampingModel::AlongSpring;
-  const bool held = along && damping_axes;
-  for (const SpringGroup& g : model.groups) {
-    const double stiffness = g.stiffness, damping = g.damping;
-    // Damping adds a h c along the axis (held: along its own axis, below)
-    // or isotropically.
-    const double damping_axis = along && !held ? a * damping : 0.0,
-                 damping_iso = along ? 0.0 : a * damping;
-    for (int k = g.begin; k < g.end; ++k) {
-      const Spring& s = model.springs[k];
-      const Vec3 d = x.segment<3>(3 * s.j) - x.segment<3>(3 * s.i);
-      const double l = d.norm();
-      const bool degenerate = isDegenerate(l, s.rest_length);
-      const Vec3 u = springDirection(d, l, s.rest_length, s.rest_direction);
-      // K = k (1 - t) u u^T + k t I with t = 1 - L/l (clamped at 0 under
-      // compression when projecting; 0 when degenerate): kept as two scalars,
-      // so S = b K (+ damping) is one outer product and a diagonal shift.
-      double t = degenerate ? 0.0 : 1.0 - s.rest_length / l;
-      if (project_compression) t = std::max(t, 0.0);
-      const double k_iso = stiffness * t, k_axis = stiffness - k_iso;
-      const Vec3& axis = held ? (*damping_axes)[k] : u;
-      const Vec3 fi = springForceOnI(stiffness, damping, along, l, s.rest_length, u,
-                                     v.segment<3>(3 * s.j) - v.segment<3>(3 * s.i), axis);
-      if (held) A.setDampingAxis(k, a * damping, axis);
-      A.setCoupling(k, s.i, s.j, b * k_iso + damping_iso, b * k_axis + damping_axis, u);
-      f.segment<3>(3 * s.i) += fi;
-      f.segment<3>(3 * s.j) -= fi;
-      if (dfdx_w) {
-        const Vec3 dw = w->segment<3>(3 * s.j) - w->segment<3>(3 * s.i);
-        const Vec3 kdw = k_iso * dw + (k_axis * u.dot(dw)) * u;
-        dfdx_w->segment<3>(3 * s.i) += kdw;
-        dfdx_w->segment<3>(3 * s.j) -= kdw;
-      }
-    }
-  }
+  if (dfdx_w) dfdx_w->resize(x.size());
+  springSweeps(model, x, v, a, b, project_compression, &A, f, dfdx_w ? w : nullptr, dfdx_w,
+               damping_axes);
 }
 
 EnergyParts measureEnergy(const Model& model, const VecX& x, const VecX& v) {
   EnergyParts e;
   e.kinetic = kineticEnergy(model, v);
   e.potential = gravityEnergy(model, x);
-  for (const SpringGroup& g : model.groups) {
-    double sum = 0.0;  // sum of (l - L)^2 over the group
-    for (int k = g.begin; k < g.end; ++k) {
-      const Spring& s = model.springs[k];
-      const double l = (x.segment<3>(3 * s.j) - x.segment<3>(3 * s.i)).norm();
-      const double stretch = l - s.rest_length;
-      sum += stretch * stretch;
-      e.max_strain = std::max(e.max_strain, l / s.rest_length - 1.0);
-    }
-    e.elastic += 0.5 * g.stiffness * sum;
+  const SpringLayout& layout = *model.layout;
+  const int n = layout.num_nodes;
+  SweepBuffers& buf = sweepBuffers();
+  buf.x.resize(3 * static_cast<size_t>(n));
+  sweeps::splitComponents(x, buf.x.data());
+  const double* split[3] = {buf.x.data(), buf.x.data() + n, buf.x.data() + 2 * n};
+  double sum[kNumSpringTypes] = {};  // of (l - L)^2, per group
+  for (const SpringDirection& dir : layout.directions) {
+    sweeps::energySweep(dir.slots, dir.offset, split, dir.valid.data(), dir.rest_length.data(),
+                        dir.inv_rest_length.data(), &sum[static_cast<int>(dir.type)],
+                        &e.max_strain);
   }
+  for (int t = 0; t < kNumSpringTypes; ++t) e.elastic += 0.5 * model.groups[t].stiffness * sum[t];
   return e;
 }
 

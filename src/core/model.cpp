@@ -80,6 +80,7 @@ Model buildModel(const Scene& scene) {
   for (int t = 0; t < kNumSpringTypes; ++t) {
     addGroup(scene, static_cast<SpringType>(t), m.rest_positions, &m);
   }
+  m.layout = layOutSprings(n, m.springs);
   m.damping_model = scene.damping_model;
   m.gravity = scene.gravity;
   m.has_gravity = scene.gravity.squaredNorm() > 0.0;

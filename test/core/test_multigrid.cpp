@@ -44,7 +44,6 @@ HangingSystem hangingSystem(int rows, int cols, const std::vector<int>& pins, do
   s.model = sim.model();
   s.x = sim.positions();
   s.v = sim.velocities();
-  s.A.resize(s.model.numNodes(), static_cast<int>(s.model.springs.size()));
   VecX f;
   assembleSystem(s.model, sim.positions(), sim.velocities(), h, h * h, true, s.A, f);
   s.free.assign(s.model.numNodes(), 1);

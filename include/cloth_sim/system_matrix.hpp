@@ -1,0 +1,113 @@
+// The system matrix A = M - b h df/dv - b^2 h^2 df/dx of an implicit step,
+// stored per node (its mass block, a multiple of I) and per spring (one
+// symmetric 3x3 coupling block S, entering as A_ii += S, A_jj += S,
+// A_ij = A_ji = -S), so the sparsity pattern is the spring list: fixed,
+// refilled in place each step.
+//
+// A spring's S is iso I + axis u u^T (its stiffness and damping act along its
+// axis u and isotropically), kept as those 5 numbers. Newton's along-spring
+// damping acts along an axis held over the step (newtonSolve), which can
+// differ from the spring's current axis: it adds a second outer product
+// c w w^T (setDampingAxis), read only while set.
+//
+// The couplings are kept by direction (spring_layout.hpp), one slot per node
+// in separate arrays, so the product and the assembly are stencil sweeps
+// over contiguous arrays the compiler vectorises: on the 16 x 16 seed cloth
+// a product takes 1.5 us, where a per-spring loop over 48-byte records took
+// 3.1 (docs/profile.md).
+#pragma once
+
+#include <memory>
+#include <utility>
+#include <vector>
+
+#include "cloth_sim/constraint_filter.hpp"
+#include "cloth_sim/model.hpp"
+#include "cloth_sim/multigrid.hpp"
+#include "cloth_sim/spring_layout.hpp"
+#include "cloth_sim/spring_sweeps.hpp"
+#include "cloth_sim/types.hpp"
+
+namespace cloth_sim {
+
+class SystemMatrix {
+ public:
+  /// Sizes the matrix for the layout's nodes and springs (a model's
+  /// `layout`); the coupling arrays are made anew only for another layout.
+  void resize(const std::shared_ptr<const SpringLayout>& layout);
+  int numNodes() const { return layout_ ? layout_->num_nodes : 0; }
+  int numSprings() const { return layout_ ? static_cast<int>(layout_->slot.size()) : 0; }
+  /// Sets the node blocks to mass_i * I (+ extra_diagonal * I). Couplings are
+  /// then set by setCoupling for every spring.
+  void reset(const std::vector<double>& mass, double extra_diagonal = 0.0);
+  /// Sets spring k's block S = iso I + axis u u^T (u unit).
+  void setCoupling(int spring, double iso, double axis, const Vec3& u) {
+    const SpringSlot& s = layout_->slot[spring];
+    Coefficients& d = coefficients_[s.direction];
+    d.iso[s.node] = iso;
+    d.axis[s.node] = axis;
+    for (int c = 0; c < 3; ++c) d.u[c][s.node] = u[c];
+    full_diag_valid_ = false;
+  }
+  /// Adds damping c w w^T (w unit) to spring k's block: the along-spring
+  /// damping of an axis w held over the step. Kept until reset(); once one
+  /// spring's is set, every spring's is part of the matrix, so set all.
+  void setDampingAxis(int spring, double damping, const Vec3& w) {
+    if (!has_damping_axes_) useDampingAxes();
+    const SpringSlot& s = layout_->slot[spring];
+    Coefficients& d = coefficients_[s.direction];
+    d.c[s.node] = damping;
+    for (int c = 0; c < 3; ++c) d.w[c][s.node] = w[c];
+    full_diag_valid_ = false;
+  }
+  /// One direction's coupling arrays, per slot (the assembly's sweeps write
+  /// them): S = iso I + axis u u^T, plus c w w^T after useDampingAxes().
+  struct Coefficients {
+    std::vector<double> iso, axis, u[3];
+    std::vector<double> c, w[3];  ///< sized by useDampingAxes()
+  };
+  Coefficients& coefficients(int direction) {
+    full_diag_valid_ = false;
+    return coefficients_[direction];
+  }
+  /// Makes the held damping axes part of the matrix until reset().
+  void useDampingAxes();
+  /// Adds a symmetric block to node i's diagonal (a contact's friction
+  /// Jacobian): couplings beyond the spring list, kept until reset().
+  void addNodeBlock(int node, const Mat3& block) {
+    node_blocks_.emplace_back(node, SymBlock::from(block));
+    full_diag_valid_ = false;
+  }
+  const std::vector<std::pair<int, SymBlock>>& nodeBlocks() const { return node_blocks_; }
+  /// Node block without the couplings: nodeScale(i) * I.
+  double nodeScale(int node) const { return node_scale_[node]; }
+  Mat3 diag(int node) const { return node_scale_[node] * Mat3::Identity(); }
+  Mat3 coupling(int spring) const { return couplingBlock(spring).toMat3(); }
+  SymBlock couplingBlock(int spring) const;
+
+  /// y = S A x, S the filter (eliminated rows zero, projected rows projected;
+  /// x is taken as given, so pass a filtered x for S A S x).
+  void multiply(const ConstraintFilter& filter, const VecX& x, VecX& y) const;
+  /// y = A x, unfiltered (contact reactions).
+  void multiplyAll(const VecX& x, VecX& y) const;
+  /// Full diagonal block of node i including its springs' couplings (summed
+  /// on first use after the couplings changed: only block Jacobi and Cholesky
+  /// need them).
+  Mat3 fullDiag(int node) const { return fullDiagonal()[node].toMat3(); }
+  const std::vector<SymBlock>& fullDiagonal() const;
+
+ private:
+  std::shared_ptr<const SpringLayout> layout_;
+  std::vector<double> node_scale_;  ///< node block = node_scale_ * I
+  std::vector<Coefficients> coefficients_;  ///< per direction of the layout
+  bool has_damping_axes_ = false;
+  std::vector<std::pair<int, SymBlock>> node_blocks_;  ///< extra node blocks (addNodeBlock)
+  mutable std::vector<SymBlock> full_diag_;
+  mutable bool full_diag_valid_ = false;
+  /// Work arrays of the product and the diagonal: by component, and one
+  /// direction's per-slot terms.
+  mutable std::vector<double> x_split_, y_split_, diag_split_;
+  mutable sweeps::PaddedTerms terms_;
+};
+
+}  // namespace cloth_sim

@@ -1,0 +1,211 @@
+#include "cloth_sim/spring_sweeps.hpp"
+#include "vectorised.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "cloth_sim/spring_forces.hpp"
+
+namespace cloth_sim {
+namespace sweeps {
+
+void splitComponents(const VecX& x, double* out) {
+  const int n = static_cast<int>(x.size() / 3);
+  const double* in = x.data();
+  for (int i = 0; i < n; ++i) {
+    out[i] = in[3 * i];
+    out[n + i] = in[3 * i + 1];
+    out[2 * n + i] = in[3 * i + 2];
+  }
+}
+
+void joinComponents(const double* in, int n, double* out) {
+  for (int i = 0; i < n; ++i) {
+    out[3 * i] = in[i];
+    out[3 * i + 1] = in[n + i];
+    out[3 * i + 2] = in[2 * n + i];
+  }
+}
+
+void PaddedTerms::reset(int n, int offset, int components) {
+  n_ = n;
+  offset_ = offset;
+  padded_ = n + offset;
+  components_ = components;
+  buffer_.resize(components * static_cast<size_t>(padded_));
+  data_ = buffer_.data();
+  for (int c = 0; c < components; ++c) {  // the pads; a sweep fills the rest
+    std::fill(data_ + c * padded_, data_ + c * padded_ + offset, 0.0);
+    std::fill(data_ + c * padded_ + n, data_ + (c + 1) * padded_, 0.0);
+  }
+}
+
+namespace {
+
+CLOTH_SIM_VECTORISED
+void addDifferences(int n, int offset, int padded, const double* __restrict t,
+                    double* __restrict y) {
+  const double *__restrict t0 = t, *__restrict t1 = t + padded, *__restrict t2 = t + 2 * padded;
+  double *__restrict y0 = y, *__restrict y1 = y + n, *__restrict y2 = y + 2 * n;
+  for (int p = 0; p < n; ++p) {
+    y0[p] += t0[p + offset] - t0[p];
+    y1[p] += t1[p + offset] - t1[p];
+    y2[p] += t2[p + offset] - t2[p];
+  }
+}
+
+CLOTH_SIM_VECTORISED
+void addSums(int n, int offset, const double* __restrict t, double* __restrict y) {
+  for (int p = 0; p < n; ++p) y[p] += t[p + offset] + t[p];
+}
+
+/// forceSweep's loop for one combination of outputs and damping.
+template <bool kMatrix, bool kKw, bool kHeld, bool kAlong>
+inline __attribute__((always_inline)) void forceLoop(const ForceSweepIn& in,
+                                                     const ForceSweepOut& out) {
+  const int o = in.offset;
+  const double *__restrict x0 = in.x[0], *__restrict x1 = in.x[1], *__restrict x2 = in.x[2];
+  const double *__restrict v0 = in.v[0], *__restrict v1 = in.v[1], *__restrict v2 = in.v[2];
+  const double *__restrict w0 = in.w[0], *__restrict w1 = in.w[1], *__restrict w2 = in.w[2];
+  const double *__restrict h0 = in.held[0], *__restrict h1 = in.held[1],
+               *__restrict h2 = in.held[2];
+  const double *__restrict valid = in.valid, *__restrict rest = in.rest_length;
+  const double *__restrict r0 = in.rest_dir[0], *__restrict r1 = in.rest_dir[1],
+               *__restrict r2 = in.rest_dir[2];
+  double *__restrict f0 = out.f[0], *__restrict f1 = out.f[1], *__restrict f2 = out.f[2];
+  double *__restrict kw0 = out.kw[0], *__restrict kw1 = out.kw[1], *__restrict kw2 = out.kw[2];
+  double *__restrict iso = out.iso, *__restrict axis = out.axis;
+  double *__restrict u0s = out.u[0], *__restrict u1s = out.u[1], *__restrict u2s = out.u[2];
+  double *__restrict cs = out.c;
+  double *__restrict hw0 = out.hw[0], *__restrict hw1 = out.hw[1], *__restrict hw2 = out.hw[2];
+  const double k = in.stiffness, c = in.damping, a = in.a, b = in.b;
+  const double floor = in.project_compression ? 0.0 : -HUGE_VAL;
+  const int slots = in.slots;  // a local: the stores below might alias `in`
+  // The arrays never overlap (restrict on these locals is not used by GCC 12
+  // to drop its run-time alias checks, too many for it here).
+#pragma GCC ivdep
+  for (int p = 0; p < slots; ++p) {
+    const double d0 = x0[p + o] - x0[p], d1 = x1[p + o] - x1[p], d2 = x2[p + o] - x2[p];
+    const double l = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2);
+    const double L = rest[p];
+    // springDirection and isDegenerate (spring_forces.hpp), as selects.
+    const bool degenerate = !(l > kDegenerateLength * std::max(L, 1.0));
+    const double inv = 1.0 / l;
+    const double rd0 = r0[p], rd1 = r1[p], rd2 = r2[p];  // loaded either way: selects, not branches
+    const double u0 = degenerate ? rd0 : d0 * inv, u1 = degenerate ? rd1 : d1 * inv,
+                 u2 = degenerate ? rd2 : d2 * inv;
+    // K = k (1 - t) u u^T + k t I, t = 1 - L/l (0 when degenerate; clamped
+    // at 0 under compression when projecting): kept as two scalars.
+    const double t = std::max(degenerate ? 0.0 : 1.0 - L * inv, floor);
+    const double km = k * valid[p], cm = c * valid[p];  // empty slots: nothing
+    const double k_iso = km * t, k_axis = km - k_iso;
+    const double e0 = kHeld ? h0[p] : u0, e1 = kHeld ? h1[p] : u1, e2 = kHeld ? h2[p] : u2;
+    const double dv0 = v0[p + o] - v0[p], dv1 = v1[p + o] - v1[p], dv2 = v2[p + o] - v2[p];
+    const double s = km * (l - L);
+    if (kAlong) {
+      const double q = cm * (dv0 * e0 + dv1 * e1 + dv2 * e2);
+      f0[p] = s * u0 + q * e0;
+      f1[p] = s * u1 + q * e1;
+      f2[p] = s * u2 + q * e2;
+    } else {
+      f0[p] = s * u0 + cm * dv0;
+      f1[p] = s * u1 + cm * dv1;
+      f2[p] = s * u2 + cm * dv2;
+    }
+    if (kMatrix) {
+      iso[p] = b * k_iso + (kAlong ? 0.0 : a * cm);
+      axis[p] = b * k_axis + (kAlong && !kHeld ? a * cm : 0.0);
+      u0s[p] = u0;
+      u1s[p] = u1;
+      u2s[p] = u2;
+      if (kHeld) {
+        cs[p] = a * cm;
+        hw0[p] = e0;
+        hw1[p] = e1;
+        hw2[p] = e2;
+      }
+    }
+    if (kKw) {
+      const double dw0 = w0[p + o] - w0[p], dw1 = w1[p + o] - w1[p], dw2 = w2[p + o] - w2[p];
+      const double q = k_axis * (u0 * dw0 + u1 * dw1 + u2 * dw2);
+      kw0[p] = k_iso * dw0 + q * u0;
+      kw1[p] = k_iso * dw1 + q * u1;
+      kw2[p] = k_iso * dw2 + q * u2;
+    }
+  }
+}
+
+template <bool kMatrix, bool kKw>
+inline __attribute__((always_inline)) void forceLoopByDamping(const ForceSweepIn& in,
+                                                              const ForceSweepOut& out) {
+  if (!in.along) {
+    forceLoop<kMatrix, kKw, false, false>(in, out);
+  } else if (in.held[0]) {
+    forceLoop<kMatrix, kKw, true, true>(in, out);
+  } else {
+    forceLoop<kMatrix, kKw, false, true>(in, out);
+  }
+}
+
+CLOTH_SIM_VECTORISED
+void forceSweepDispatch(const ForceSweepIn& in, const ForceSweepOut& out) {
+  if (!out.iso) {
+    forceLoopByDamping<false, false>(in, out);
+  } else if (in.w[0]) {
+    forceLoopByDamping<true, true>(in, out);
+  } else {
+    forceLoopByDamping<true, false>(in, out);
+  }
+}
+
+CLOTH_SIM_VECTORISED
+void energyTerms(int slots, int offset, const double* __restrict x0, const double* __restrict x1,
+                 const double* __restrict x2, const double* __restrict valid,
+                 const double* __restrict rest, const double* __restrict inv_rest,
+                 double* __restrict sq, double* __restrict strain) {
+  for (int p = 0; p < slots; ++p) {
+    const double d0 = x0[p + offset] - x0[p], d1 = x1[p + offset] - x1[p],
+                 d2 = x2[p + offset] - x2[p];
+    const double l = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2);
+    const double m = valid[p], stretch = (l - rest[p]) * m, s = l * inv_rest[p] - 1.0;
+    sq[p] = stretch * stretch;
+    strain[p] = m > 0.0 ? s : -HUGE_VAL;
+  }
+}
+
+}  // namespace
+
+void PaddedTerms::addDifferences(double* y_split) const {
+  sweeps::addDifferences(n_, offset_, padded_, data_, y_split);
+}
+
+void PaddedTerms::addSums(double* y_split) const {
+  for (int c = 0; c < components_; ++c) {
+    sweeps::addSums(n_, offset_, data_ + c * padded_, y_split + c * n_);
+  }
+}
+
+void forceSweep(const ForceSweepIn& in, const ForceSweepOut& out) { forceSweepDispatch(in, out); }
+
+void energySweep(int slots, int offset, const double* const x[3], const double* valid,
+                 const double* rest_length, const double* inv_rest_length, double* sum_sq,
+                 double* max_strain) {
+  thread_local std::vector<double> sq, strain;
+  sq.resize(std::max(slots, 0));
+  strain.resize(std::max(slots, 0));
+  energyTerms(slots, offset, x[0], x[1], x[2], valid, rest_length, inv_rest_length, sq.data(),
+              strain.data());
+  // Four partial sums: a single one is an add-latency chain.
+  double s[4] = {0.0, 0.0, 0.0, 0.0}, m = *max_strain;
+  int p = 0;
+  for (; p + 4 <= slots; p += 4) {
+    for (int r = 0; r < 4; ++r) s[r] += sq[p + r];
+  }
+  for (; p < slots; ++p) s[0] += sq[p];
+  for (int q = 0; q < slots; ++q) m = std::max(m, strain[q]);
+  *sum_sq += (s[0] + s[1]) + (s[2] + s[3]);
+  *max_strain = m;
+}
+
+}  // namespace sweeps
+}  // namespace cloth_sim

@@ -1,0 +1,190 @@
+#include "cloth_sim/system_matrix.hpp"
+
+#include <algorithm>
+#include <stdexcept>
+#include <string>
+
+#include "cloth_sim/spring_sweeps.hpp"
+#include "vectorised.hpp"
+
+namespace cloth_sim {
+
+namespace {
+
+/// Per slot p < count of one direction (ends p and p + offset): the coupling
+/// term t = S (x_p - x_{p+offset}), written to t0..t2 at p. Held damping
+/// axes (c, w) are added where c is given.
+CLOTH_SIM_VECTORISED
+void directionTerms(int count, int offset, const double* __restrict x0,
+                    const double* __restrict x1, const double* __restrict x2,
+                    const double* __restrict iso, const double* __restrict axis,
+                    const double* __restrict u0, const double* __restrict u1,
+                    const double* __restrict u2, const double* __restrict c,
+                    const double* __restrict w0, const double* __restrict w1,
+                    const double* __restrict w2, double* __restrict t0,
+                    double* __restrict t1, double* __restrict t2) {
+  if (c) {
+    for (int p = 0; p < count; ++p) {
+      const double d0 = x0[p] - x0[p + offset], d1 = x1[p] - x1[p + offset],
+                   d2 = x2[p] - x2[p + offset];
+      const double a = axis[p] * (u0[p] * d0 + u1[p] * d1 + u2[p] * d2);
+      const double e = c[p] * (w0[p] * d0 + w1[p] * d1 + w2[p] * d2);
+      t0[p] = iso[p] * d0 + a * u0[p] + e * w0[p];
+      t1[p] = iso[p] * d1 + a * u1[p] + e * w1[p];
+      t2[p] = iso[p] * d2 + a * u2[p] + e * w2[p];
+    }
+    return;
+  }
+  for (int p = 0; p < count; ++p) {
+    const double d0 = x0[p] - x0[p + offset], d1 = x1[p] - x1[p + offset],
+                 d2 = x2[p] - x2[p + offset];
+    const double a = axis[p] * (u0[p] * d0 + u1[p] * d1 + u2[p] * d2);
+    t0[p] = iso[p] * d0 + a * u0[p];
+    t1[p] = iso[p] * d1 + a * u1[p];
+    t2[p] = iso[p] * d2 + a * u2[p];
+  }
+}
+
+/// Per slot p < count: the coupling block's 6 entries (xx, yy, zz, xy, xz,
+/// yz; SymBlock's order) into s[0..5] at p; held damping axes where c is given.
+CLOTH_SIM_VECTORISED
+void blockEntries(int count, const double* __restrict iso, const double* __restrict axis,
+                  const double* __restrict u0, const double* __restrict u1,
+                  const double* __restrict u2, const double* __restrict c,
+                  const double* __restrict w0, const double* __restrict w1,
+                  const double* __restrict w2, double* __restrict s0, double* __restrict s1,
+                  double* __restrict s2, double* __restrict s3, double* __restrict s4,
+                  double* __restrict s5) {
+  for (int p = 0; p < count; ++p) {
+    const double a = axis[p], i = iso[p];
+    s0[p] = i + a * u0[p] * u0[p];
+    s1[p] = i + a * u1[p] * u1[p];
+    s2[p] = i + a * u2[p] * u2[p];
+    s3[p] = a * u0[p] * u1[p];
+    s4[p] = a * u0[p] * u2[p];
+    s5[p] = a * u1[p] * u2[p];
+  }
+  if (!c) return;
+  for (int p = 0; p < count; ++p) {
+    const double e = c[p];
+    s0[p] += e * w0[p] * w0[p];
+    s1[p] += e * w1[p] * w1[p];
+    s2[p] += e * w2[p] * w2[p];
+    s3[p] += e * w0[p] * w1[p];
+    s4[p] += e * w0[p] * w2[p];
+    s5[p] += e * w1[p] * w2[p];
+  }
+}
+
+}  // namespace
+
+void SystemMatrix::resize(const std::shared_ptr<const SpringLayout>& layout) {
+  if (layout != layout_) {
+    layout_ = layout;
+    const int n = layout->num_nodes;
+    coefficients_.assign(layout->directions.size(), {});
+    for (Coefficients& d : coefficients_) {
+      for (std::vector<double>* a : {&d.iso, &d.axis, &d.u[0], &d.u[1], &d.u[2]}) {
+        a->assign(n, 0.0);
+      }
+    }
+    node_scale_.assign(n, 0.0);
+    has_damping_axes_ = false;
+    node_blocks_.clear();
+  }
+  full_diag_valid_ = false;
+}
+
+void SystemMatrix::useDampingAxes() {
+  for (Coefficients& d : coefficients_) {
+    if (d.c.empty()) {
+      for (std::vector<double>* a : {&d.c, &d.w[0], &d.w[1], &d.w[2]}) a->assign(numNodes(), 0.0);
+    }
+  }
+  has_damping_axes_ = true;
+  full_diag_valid_ = false;
+}
+
+void SystemMatrix::reset(const std::vector<double>& mass, double extra_diagonal) {
+  for (size_t i = 0; i < node_scale_.size(); ++i) node_scale_[i] = mass[i] + extra_diagonal;
+  node_blocks_.clear();
+  has_damping_axes_ = false;
+  full_diag_valid_ = false;
+}
+
+SymBlock SystemMatrix::couplingBlock(int spring) const {
+  const SpringSlot& s = layout_->slot[spring];
+  const Coefficients& d = coefficients_[s.direction];
+  const int p = s.node;
+  const double a = d.axis[p], iso = d.iso[p], u0 = d.u[0][p], u1 = d.u[1][p], u2 = d.u[2][p];
+  SymBlock S{{iso + a * u0 * u0, iso + a * u1 * u1, iso + a * u2 * u2, a * u0 * u1, a * u0 * u2,
+              a * u1 * u2}};
+  if (has_damping_axes_) {
+    const double e = d.c[p], w0 = d.w[0][p], w1 = d.w[1][p], w2 = d.w[2][p];
+    S.addScaled(1.0, {{e * w0 * w0, e * w1 * w1, e * w2 * w2, e * w0 * w1, e * w0 * w2,
+                       e * w1 * w2}});
+  }
+  return S;
+}
+
+const std::vector<SymBlock>& SystemMatrix::fullDiagonal() const {
+  if (full_diag_valid_) return full_diag_;
+  // By component (xx yy zz xy xz yz), each direction's blocks added to both ends.
+  const int n = numNodes();
+  diag_split_.assign(6 * static_cast<size_t>(n), 0.0);
+  for (int c = 0; c < 3; ++c) std::copy(node_scale_.begin(), node_scale_.end(), diag_split_.begin() + c * n);
+  const bool held = has_damping_axes_;
+  for (size_t k = 0; k < coefficients_.size(); ++k) {
+    const Coefficients& d = coefficients_[k];
+    const int o = layout_->directions[k].offset;
+    terms_.reset(n, o, 6);
+    blockEntries(n - o, d.iso.data(), d.axis.data(), d.u[0].data(), d.u[1].data(),
+                 d.u[2].data(), held ? d.c.data() : nullptr, held ? d.w[0].data() : nullptr,
+                 held ? d.w[1].data() : nullptr, held ? d.w[2].data() : nullptr, terms_.term(0),
+                 terms_.term(1), terms_.term(2), terms_.term(3), terms_.term(4), terms_.term(5));
+    terms_.addSums(diag_split_.data());
+  }
+  full_diag_.resize(n);
+  for (int i = 0; i < n; ++i) {
+    for (int c = 0; c < 6; ++c) full_diag_[i].v[c] = diag_split_[c * n + i];
+  }
+  for (const auto& [node, block] : node_blocks_) full_diag_[node].addScaled(1.0, block);
+  full_diag_valid_ = true;
+  return full_diag_;
+}
+
+void SystemMatrix::multiply(const ConstraintFilter& filter, const VecX& x_in, VecX& y_out) const {
+  multiplyAll(x_in, y_out);
+  filter.apply(y_out);
+}
+
+void SystemMatrix::multiplyAll(const VecX& x_in, VecX& y_out) const {
+  const int n = numNodes();
+  y_out.resize(3 * n);
+  x_split_.resize(3 * n);
+  y_split_.resize(3 * n);
+  sweeps::splitComponents(x_in, x_split_.data());
+  const double* xs = x_split_.data();
+  double* ys = y_split_.data();
+  for (int c = 0; c < 3; ++c) {  // the node blocks m I
+    for (int i = 0; i < n; ++i) ys[c * n + i] = node_scale_[i] * xs[c * n + i];
+  }
+  for (size_t k = 0; k < coefficients_.size(); ++k) {
+    const Coefficients& d = coefficients_[k];
+    const int o = layout_->directions[k].offset;
+    terms_.reset(n, o);
+    const bool held = has_damping_axes_;
+    directionTerms(n - o, o, xs, xs + n, xs + 2 * n, d.iso.data(), d.axis.data(), d.u[0].data(),
+                   d.u[1].data(), d.u[2].data(), held ? d.c.data() : nullptr,
+                   held ? d.w[0].data() : nullptr, held ? d.w[1].data() : nullptr,
+                   held ? d.w[2].data() : nullptr, terms_.term(0), terms_.term(1),
+                   terms_.term(2));
+    terms_.addDifferences(ys);
+  }
+  sweeps::joinComponents(y_split_.data(), n, y_out.data());
+  for (const auto& [node, block] : node_blocks_) {
+    y_out.segment<3>(3 * node) += block * Vec3(x_in.segment<3>(3 * node));
+  }
+}
+
+}  // namespace cloth_sim

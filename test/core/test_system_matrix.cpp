@@ -1,0 +1,111 @@
+// The system matrix's layout by direction (spring_layout.hpp): on every grid
+// shape (chains, two-column strips, where a shear diagonal and a row share
+// an offset, squares) its product and block diagonal equal the sums over
+// its blocks written out per spring, with and without held damping axes;
+// springs it cannot lay out are refused.
+#include <gtest/gtest.h>
+
+#include <random>
+#include <stdexcept>
+
+#include "cloth_sim/forces.hpp"
+#include "scene_builders.hpp"
+
+namespace cloth_sim {
+namespace {
+
+Model gridModel(int rows, int cols) {
+  Scene s = test::bareScene(rows, cols);
+  test::enable(s, SpringType::Stretch, 1.0, 0.0);
+  test::enable(s, SpringType::Shear, 1.0, 0.0);
+  test::enable(s, SpringType::Bend, 1.0, 0.0);
+  return buildModel(s);
+}
+
+Vec3 unitVector(std::mt19937& rng) {
+  std::normal_distribution<double> g(0.0, 1.0);
+  const Vec3 u(g(rng), g(rng), g(rng));
+  return u.normalized();
+}
+
+TEST(SystemMatrix, ProductAndDiagonalAreTheSumsOfTheBlocksOnEveryGridShape) {
+  const int shapes[][2] = {{1, 6}, {6, 1}, {2, 2}, {2, 5}, {5, 2}, {3, 3}, {3, 4}, {9, 7}};
+  for (const auto& shape : shapes) {
+    for (bool held : {false, true}) {
+      SCOPED_TRACE(std::to_string(shape[0]) + "x" + std::to_string(shape[1]) +
+                   (held ? " with held damping axes" : ""));
+      const Model m = gridModel(shape[0], shape[1]);
+      const int n = m.numNodes(), springs = static_cast<int>(m.springs.size());
+      ASSERT_GT(springs, 0);
+      std::mt19937 rng(n + springs);
+      std::uniform_real_distribution<double> coefficient(-2.0, 3.0);
+      SystemMatrix A;
+      A.resize(m.layout);
+      A.reset(m.mass, 0.25);
+      std::vector<Mat3> blocks(springs);
+      for (int k = 0; k < springs; ++k) {
+        const double iso = coefficient(rng), axis = coefficient(rng);
+        const Vec3 u = unitVector(rng);
+        A.setCoupling(k, iso, axis, u);
+        blocks[k] = iso * Mat3::Identity() + axis * u * u.transpose();
+        if (held) {
+          const double c = coefficient(rng);
+          const Vec3 w = unitVector(rng);
+          A.setDampingAxis(k, c, w);
+          blocks[k] += c * w * w.transpose();
+        }
+      }
+      VecX x(3 * n);
+      for (int k = 0; k < x.size(); ++k) x[k] = coefficient(rng);
+      VecX y_ref(3 * n);
+      std::vector<Mat3> diag(n);
+      for (int i = 0; i < n; ++i) {
+        diag[i] = (m.mass[i] + 0.25) * Mat3::Identity();
+        y_ref.segment<3>(3 * i) = diag[i] * x.segment<3>(3 * i);
+      }
+      for (int k = 0; k < springs; ++k) {
+        const Spring& s = m.springs[k];
+        const Vec3 t = blocks[k] * (x.segment<3>(3 * s.i) - x.segment<3>(3 * s.j));
+        y_ref.segment<3>(3 * s.i) += t;
+        y_ref.segment<3>(3 * s.j) -= t;
+        diag[s.i] += blocks[k];
+        diag[s.j] += blocks[k];
+        EXPECT_LE((A.coupling(k) - blocks[k]).norm(), 1e-15 * (1.0 + blocks[k].norm()));
+      }
+      VecX y;
+      A.multiplyAll(x, y);
+      EXPECT_LE((y - y_ref).norm(), 1e-14 * y_ref.norm());
+      for (int i = 0; i < n; ++i) {
+        EXPECT_LE((A.fullDiag(i) - diag[i]).norm(), 1e-14 * diag[i].norm()) << "node " << i;
+      }
+    }
+  }
+}
+
+TEST(SpringLayout, GroupsAGridByDirectionAndRefusesSpringsItCannotLayOut) {
+  const Model m = gridModel(4, 5);
+  // stretch: rows and columns; shear: both diagonals; bend: rows and columns.
+  EXPECT_EQ(m.layout->directions.size(), 6u);
+  for (size_t k = 0; k < m.springs.size(); ++k) {
+    const SpringSlot& slot = m.layout->slot[k];
+    const SpringDirection& d = m.layout->directions[slot.direction];
+    EXPECT_EQ(d.type, m.springs[k].type);
+    EXPECT_EQ(slot.other - slot.node, d.offset);
+    EXPECT_EQ(d.valid[slot.node], 1.0);
+    EXPECT_EQ(d.rest_length[slot.node], m.springs[k].rest_length);
+  }
+  std::vector<Spring> springs(1);
+  springs[0].i = springs[0].j = 2;
+  EXPECT_THROW(layOutSprings(4, springs), std::invalid_argument);  // a node to itself
+  springs[0].j = 4;
+  EXPECT_THROW(layOutSprings(4, springs), std::invalid_argument);  // outside the nodes
+  springs[0].j = 3;
+  springs.push_back(springs[0]);
+  std::swap(springs[1].i, springs[1].j);
+  EXPECT_THROW(layOutSprings(4, springs), std::invalid_argument);  // the same two nodes twice
+  springs[1].type = SpringType::Bend;
+  EXPECT_EQ(layOutSprings(4, springs)->directions.size(), 2u);  // another type: allowed
+}
+
+}  // namespace
+}  // namespace cloth_sim
