@@ -19,8 +19,7 @@ void computeForces(const Model& model, const VecX& x, const VecX& v, VecX& f,
                    const std::vector<Vec3>* damping_axes = nullptr);
 
 /// Fills A = M - a df/dv - b df/dx (pinned rows are handled by the solver),
-/// and in the same spring loop f(x, v) and, if w is given, df/dx * w.
-/// Also accumulates A's block diagonal for the preconditioner.
+/// and in the same spring sweep f(x, v) and, if w is given, df/dx * w.
 /// `damping_axes` as in computeForces: A's damping is then a c w w^T, exact
 /// (the force is linear in v and does not depend on x).
 void assembleSystem(const Model& model, const VecX& x, const VecX& v, double a, double b,

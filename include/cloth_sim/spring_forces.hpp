@@ -43,8 +43,9 @@ inline Vec3 springDirection(const Vec3& d, double l, double rest_length,
 /// Force on node i of a spring of length l along unit axis u (node j gets the
 /// negative): k (l - L) u plus damping of the ends' relative velocity dv =
 /// v_j - v_i, along the unit axis w (along_axis; newton holds w over a step,
-/// else w = u) or whole. The one formula the per-spring and the whole-cloth
-/// loops share.
+/// else w = u) or whole. The whole-cloth loops (spring_sweeps.cpp) write the
+/// same formula slot by slot, where it vectorises; Forces.MatchPerSpringReferenceSum
+/// holds them to each other.
 inline Vec3 springForceOnI(double stiffness, double damping, bool along_axis, double l,
                            double rest_length, const Vec3& u, const Vec3& dv, const Vec3& w) {
   Vec3 f = stiffness * (l - rest_length) * u;

@@ -1,10 +1,10 @@
 #include "cloth_sim/spring_sweeps.hpp"
-#include "vectorised.hpp"
 
 #include <algorithm>
 #include <cmath>
 
 #include "cloth_sim/spring_forces.hpp"
+#include "vectorised.hpp"
 
 namespace cloth_sim {
 namespace sweeps {

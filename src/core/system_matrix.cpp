@@ -1,8 +1,6 @@
 #include "cloth_sim/system_matrix.hpp"
 
 #include <algorithm>
-#include <stdexcept>
-#include <string>
 
 #include "cloth_sim/spring_sweeps.hpp"
 #include "vectorised.hpp"
