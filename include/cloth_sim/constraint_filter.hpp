@@ -32,17 +32,23 @@ class ConstraintFilter {
   ConstraintFilter() = default;
   /// From a 0/1 mask (1 = free, 0 = eliminated): the pins-only filter.
   ConstraintFilter(const std::vector<char>& free)  // NOLINT: implicit on purpose
-      : free_(free), slot_(free.size(), -1) {}
+      : free_(free), slot_(free.size(), -1) {
+    for (size_t i = 0; i < free.size(); ++i) {
+      if (!free[i]) eliminated_.push_back(static_cast<int>(i));
+    }
+  }
 
   /// Every node free.
   void reset(int num_nodes) {
     free_.assign(num_nodes, 1);
     slot_.assign(num_nodes, -1);
+    eliminated_.clear();
     nodes_.clear();
     projectors_.clear();
   }
   /// The node leaves the solve (a pin).
   void eliminate(int node) {
+    if (free_[node]) eliminated_.push_back(node);
     free_[node] = 0;
     unproject(node);
   }
@@ -75,9 +81,7 @@ class ConstraintFilter {
 
   /// v <- S v for every node.
   void apply(VecX& v) const {
-    for (size_t i = 0; i < free_.size(); ++i) {
-      if (!free_[i]) v.segment<3>(3 * i).setZero();
-    }
+    for (int i : eliminated_) v.segment<3>(3 * i).setZero();
     applyProjections(v);
   }
   /// v <- S v on the projected nodes only (eliminated ones already zero).
@@ -87,6 +91,9 @@ class ConstraintFilter {
       v.segment<3>(3 * i) = projectors_[k] * Vec3(v.segment<3>(3 * i));
     }
   }
+  /// v <- S v for a vector split by component (v[c * n + i], n nodes: the
+  /// layout of conjugateGradient's vectors).
+  void applySplit(double* v) const;
   /// |S v| without changing v.
   double norm(const VecX& v) const;
 
@@ -97,6 +104,7 @@ class ConstraintFilter {
  private:
   std::vector<char> free_;
   std::vector<int> slot_;  ///< index into nodes_/projectors_, -1 if not projected
+  std::vector<int> eliminated_;  ///< the nodes with free_ 0
   std::vector<int> nodes_;
   std::vector<Mat3> projectors_;
 };

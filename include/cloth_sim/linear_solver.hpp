@@ -71,8 +71,12 @@ class CholeskyFactor {
 
 /// Reused buffers, so a solve allocates nothing once sized.
 struct CgWorkspace {
-  VecX r, z, p, q;
-  std::vector<SymBlock> inv_diag;  ///< block Jacobi
+  /// CG's vectors, split by component (SystemMatrix::multiplySplit), and
+  /// the unsplit ones a multigrid or Cholesky apply takes.
+  VecX x, r, z, p, q, joined_r, joined_z;
+  /// Block Jacobi's inverse node blocks, split by entry (xx, yy, zz, xy,
+  /// xz, yz; zero for eliminated nodes).
+  std::vector<double> inv_diag;
   std::shared_ptr<CholeskyFactor> cholesky;  ///< made on first use
   std::shared_ptr<MultigridPreconditioner> multigrid;  ///< made on first use
   /// The cloth grid (node = row * cols + col); the multigrid needs it.

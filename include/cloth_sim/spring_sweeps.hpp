@@ -31,6 +31,13 @@ class PaddedTerms {
   /// y_c[p] += t_c[p] + t_c[p - offset] for p < n, every component: a
   /// block that both ends get (the matrix diagonal).
   void addSums(double* y_split) const;
+  /// y = m x + a's and b's differences (m per node, x and y split by
+  /// component; b may be null): two directions and the node blocks of a
+  /// product in one pass.
+  static void sumDifferences(const double* m, const double* x_split, const PaddedTerms& a,
+                             const PaddedTerms* b, double* y_split);
+  /// y += a's and b's differences (b may be null).
+  static void addDifferences(const PaddedTerms& a, const PaddedTerms* b, double* y_split);
 
  private:
   std::vector<double> buffer_;

@@ -85,11 +85,11 @@ class SystemMatrix {
   Mat3 coupling(int spring) const { return couplingBlock(spring).toMat3(); }
   SymBlock couplingBlock(int spring) const;
 
-  /// y = S A x, S the filter (eliminated rows zero, projected rows projected;
-  /// x is taken as given, so pass a filtered x for S A S x).
-  void multiply(const ConstraintFilter& filter, const VecX& x, VecX& y) const;
   /// y = A x, unfiltered (contact reactions).
   void multiplyAll(const VecX& x, VecX& y) const;
+  /// y = A x on vectors split by component (x[c * n + i]; CG's layout);
+  /// y must not alias x.
+  void multiplySplit(const double* x, double* y) const;
   /// Full diagonal block of node i including its springs' couplings (summed
   /// on first use after the couplings changed: only block Jacobi and Cholesky
   /// need them).
@@ -104,9 +104,10 @@ class SystemMatrix {
   std::vector<std::pair<int, SymBlock>> node_blocks_;  ///< extra node blocks (addNodeBlock)
   mutable std::vector<SymBlock> full_diag_;
   mutable bool full_diag_valid_ = false;
-  /// Work arrays of the product and the diagonal: by component, and one
-  /// direction's per-slot terms.
+  /// Work arrays of the product and the diagonal: by component, each
+  /// direction's per-slot terms (the product), one direction's blocks (the diagonal).
   mutable std::vector<double> x_split_, y_split_, diag_split_;
+  mutable std::vector<sweeps::PaddedTerms> direction_terms_;
   mutable sweeps::PaddedTerms terms_;
 };
 

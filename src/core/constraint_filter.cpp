@@ -17,6 +17,18 @@ void ConstraintFilter::unproject(int node) {
   slot_[node] = -1;
 }
 
+void ConstraintFilter::applySplit(double* v) const {
+  const size_t n = free_.size();
+  for (int i : eliminated_) v[i] = v[n + i] = v[2 * n + i] = 0.0;
+  for (size_t k = 0; k < nodes_.size(); ++k) {
+    const size_t i = nodes_[k];
+    const Vec3 s = projectors_[k] * Vec3(v[i], v[n + i], v[2 * n + i]);
+    v[i] = s[0];
+    v[n + i] = s[1];
+    v[2 * n + i] = s[2];
+  }
+}
+
 double ConstraintFilter::norm(const VecX& v) const {
   double sum = 0.0;
   for (size_t i = 0; i < free_.size(); ++i) {

@@ -4,6 +4,9 @@
 #include <cmath>
 #include <limits>
 
+#include "cloth_sim/cg_kernels.hpp"
+#include "cloth_sim/spring_sweeps.hpp"
+
 namespace cloth_sim {
 
 void CholeskyFactor::buildPattern(int n, const std::vector<Spring>& springs, int grid_cols) {
@@ -123,37 +126,30 @@ bool CholeskyFactor::factorize(const SystemMatrix& A, const std::vector<Spring>&
 
 namespace {
 
-/// z = S B r: the preconditioner B is built on the free mask (projected
-/// nodes count as free there), so its output is filtered; r is filtered.
-void applyPreconditioner(Preconditioner kind, CgWorkspace& ws, const ConstraintFilter& filter,
-                         const VecX& r, VecX& z) {
-  const std::vector<char>& free = filter.freeMask();
-  if (kind == Preconditioner::None) {
-    z = r;
-    return;
+/// z = S B r on split vectors, returning r . z: the preconditioner B is
+/// built on the free mask (projected nodes count as free there), so its
+/// output is filtered; r is filtered, so r . S z = r . z.
+double applyPreconditioner(Preconditioner kind, CgWorkspace& ws, const ConstraintFilter& filter,
+                           const VecX& r, VecX& z) {
+  const int n = static_cast<int>(r.size() / 3);
+  if (kind == Preconditioner::BlockJacobi) {
+    const double* inv[6];
+    for (int e = 0; e < 6; ++e) inv[e] = ws.inv_diag.data() + static_cast<size_t>(e) * n;
+    const double rz = cg_kernels::blockJacobi(n, inv, r.data(), z.data());
+    filter.applySplit(z.data());
+    return rz;
   }
+  // Multigrid and Cholesky work on unsplit vectors (their cost dwarfs the copies).
+  ws.joined_r.resize(3 * n);
+  sweeps::joinComponents(r.data(), n, ws.joined_r.data());
   if (kind == Preconditioner::Multigrid) {
-    ws.multigrid->apply(r, z);  // pinned entries come back zero
-    filter.applyProjections(z);
-    return;
+    ws.multigrid->apply(ws.joined_r, ws.joined_z);  // pinned entries come back zero
+  } else {
+    ws.cholesky->solve(ws.joined_r, ws.joined_z);
   }
-  if (kind == Preconditioner::Cholesky) {
-    ws.cholesky->solve(r, z);
-    filter.apply(z);
-    return;
-  }
-  const int n = static_cast<int>(ws.inv_diag.size());
-  const SymBlock* inv = ws.inv_diag.data();
-  const double* rp = r.data();
-  double* zp = z.data();
-  for (int i = 0; i < n; ++i) {  // raw 3-vectors: no Eigen temporaries
-    if (free[i]) {
-      inv[i].multiply(rp + 3 * i, zp + 3 * i);
-    } else {
-      zp[3 * i] = zp[3 * i + 1] = zp[3 * i + 2] = 0.0;
-    }
-  }
-  filter.applyProjections(z);
+  sweeps::splitComponents(ws.joined_z, z.data());
+  filter.applySplit(z.data());
+  return cg_kernels::dot(3 * n, r.data(), z.data());
 }
 
 }  // namespace
@@ -217,10 +213,6 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
                            int max_iterations, CgWorkspace& ws) {
   const int n = A.numNodes();
   const int dim = 3 * n;
-  ws.r.resize(dim);
-  ws.z.resize(dim);
-  ws.p.resize(dim);
-  ws.q.resize(dim);
   const std::vector<char>& free = filter.freeMask();
   filter.apply(x);
 
@@ -235,13 +227,16 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
     return result;
   }
   if (preconditioner == Preconditioner::BlockJacobi) {
-    ws.inv_diag.resize(n);
+    ws.inv_diag.resize(6 * static_cast<size_t>(n));
     const std::vector<SymBlock>& diag = A.fullDiagonal();
-    for (int i = 0; i < n; ++i) ws.inv_diag[i] = diag[i].inverse();
+    auto store = [&](int i, const SymBlock& inv) {
+      for (int e = 0; e < 6; ++e) ws.inv_diag[static_cast<size_t>(e) * n + i] = inv.v[e];
+    };
+    for (int i = 0; i < n; ++i) store(i, free[i] ? diag[i].inverse() : SymBlock());
     // A projected node's block acts on the range of S only: invert
     // S D S + (I - S) tr(D)/3 (SPD), whose inverse on that range is exact.
     for (int i : filter.projectedNodes()) {
-      ws.inv_diag[i] = SymBlock::from(projectedBlock(diag[i].toMat3(), filter.projector(i)).inverse());
+      store(i, SymBlock::from(projectedBlock(diag[i].toMat3(), filter.projector(i)).inverse()));
     }
   } else if (preconditioner == Preconditioner::Cholesky) {
     if (!ws.cholesky) ws.cholesky = std::make_shared<CholeskyFactor>();
@@ -272,25 +267,39 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
     ws.multigrid->constrain(filter);
   }
 
-  if (x.isZero(0.0)) {
-    ws.r = b;  // a cold start (Newton's steppers): no product needed
+  // The iteration runs on vectors split by component (the product's layout).
+  ws.x.resize(dim);
+  ws.r.resize(dim);
+  ws.z.resize(dim);
+  ws.p.resize(dim);
+  ws.q.resize(dim);
+  double* xs = ws.x.data();
+  double* rs = ws.r.data();
+  sweeps::splitComponents(b, rs);
+  filter.applySplit(rs);
+  const bool cold = x.isZero(0.0);  // Newton's steppers: no product needed
+  if (cold) {
+    ws.x.setZero();
   } else {
-    A.multiply(filter, x, ws.q);
-    ws.r = b - ws.q;
+    sweeps::splitComponents(x, xs);
+    A.multiplySplit(xs, ws.q.data());
+    filter.applySplit(ws.q.data());
+    ws.r -= ws.q;
   }
-  filter.apply(ws.r);
-  double r_norm = ws.r.norm();
+  double r_norm = std::sqrt(cg_kernels::dot(dim, rs, rs));
   // A warm start worse than zero is dropped.
-  if (!(r_norm <= b_norm)) {
-    x.setZero();
-    ws.r = b;
-    filter.apply(ws.r);
+  if (!cold && !(r_norm <= b_norm)) {
+    ws.x.setZero();
+    sweeps::splitComponents(b, rs);
+    filter.applySplit(rs);
     r_norm = b_norm;
   }
   const double target = tolerance * b_norm;
-  applyPreconditioner(preconditioner, ws, filter, ws.r, ws.z);
-  ws.p = ws.z;
-  double rz = ws.r.dot(ws.z);
+  // Without a preconditioner z is r itself.
+  const bool plain = preconditioner == Preconditioner::None;
+  VecX& z = plain ? ws.r : ws.z;
+  double rz = plain ? r_norm * r_norm : applyPreconditioner(preconditioner, ws, filter, ws.r, z);
+  ws.p = z;
   // A preconditioner kept from an earlier matrix (a reused Cholesky factor,
   // multigrid coarse levels) either still solves in a few iterations or is
   // stale (e.g. Newton iterates on stiff rotating springs): then it gets only
@@ -303,21 +312,23 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
       : reused_multigrid ? std::min(max_iterations, ws.multigrid->staleIterations())
                          : max_iterations;
   int k = 0;
+  double* ps = ws.p.data();
+  double* qs = ws.q.data();
   while (r_norm > target && k < budget) {
-    A.multiply(filter, ws.p, ws.q);
-    const double pq = ws.p.dot(ws.q);
+    A.multiplySplit(ps, qs);
+    filter.applySplit(qs);
+    const double pq = cg_kernels::dot(dim, ps, qs);
     if (!(pq > 0.0)) break;  // not positive definite (or NaN): stop, report
     const double alpha = rz / pq;
-    x.noalias() += alpha * ws.p;
-    ws.r.noalias() -= alpha * ws.q;
-    r_norm = ws.r.norm();
+    const double rr = cg_kernels::updateSolution(dim, alpha, ps, qs, xs, rs);
+    r_norm = std::sqrt(rr);
     ++k;
     if (r_norm <= target) break;
-    applyPreconditioner(preconditioner, ws, filter, ws.r, ws.z);
-    const double rz_new = ws.r.dot(ws.z);
-    ws.p = ws.z + (rz_new / rz) * ws.p;
+    const double rz_new = plain ? rr : applyPreconditioner(preconditioner, ws, filter, ws.r, z);
+    cg_kernels::updateDirection(dim, rz_new / rz, z.data(), ps);
     rz = rz_new;
   }
+  sweeps::joinComponents(xs, n, x.data());
   if ((reused_factor || reused_multigrid) && r_norm > target && k < max_iterations) {
     // Too stale for this matrix: rebuild from it and go on from x.
     if (reused_factor) {

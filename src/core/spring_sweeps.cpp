@@ -54,6 +54,34 @@ void addDifferences(int n, int offset, int padded, const double* __restrict t,
   }
 }
 
+/// y = (m x or y) + (ta[p + oa] - ta[p]) + (tb[p + ob] - tb[p]) for one
+/// component (ta, tb padded term arrays).
+template <bool kInit>
+inline __attribute__((always_inline)) void twoDifferences(
+    int n, const double* __restrict m, const double* __restrict x, const double* __restrict ta,
+    int oa, const double* __restrict tb, int ob, double* __restrict y) {
+  for (int p = 0; p < n; ++p) {
+    const double base = kInit ? m[p] * x[p] : y[p];
+    y[p] = base + ((ta[p + oa] - ta[p]) + (tb[p + ob] - tb[p]));
+  }
+}
+
+CLOTH_SIM_VECTORISED
+void sumTwoDirections(int n, const double* m, const double* x, const double* ta, int oa,
+                      int pa, const double* tb, int ob, int pb, double* y) {
+  for (int c = 0; c < 3; ++c) {
+    twoDifferences<true>(n, m, x + c * n, ta + c * pa, oa, tb + c * pb, ob, y + c * n);
+  }
+}
+
+CLOTH_SIM_VECTORISED
+void addTwoDirections(int n, const double* ta, int oa, int pa, const double* tb, int ob, int pb,
+                      double* y) {
+  for (int c = 0; c < 3; ++c) {
+    twoDifferences<false>(n, nullptr, nullptr, ta + c * pa, oa, tb + c * pb, ob, y + c * n);
+  }
+}
+
 CLOTH_SIM_VECTORISED
 void addSums(int n, int offset, const double* __restrict t, double* __restrict y) {
   for (int p = 0; p < n; ++p) y[p] += t[p + offset] + t[p];
@@ -183,6 +211,21 @@ void PaddedTerms::addSums(double* y_split) const {
   for (int c = 0; c < components_; ++c) {
     sweeps::addSums(n_, offset_, data_ + c * padded_, y_split + c * n_);
   }
+}
+
+// A missing second direction is a zero one: offset 0 on the first's terms
+// (t[p] - t[p] = 0), so one loop serves odd counts too.
+void PaddedTerms::sumDifferences(const double* m, const double* x_split, const PaddedTerms& a,
+                                 const PaddedTerms* b, double* y_split) {
+  const PaddedTerms& bb = b ? *b : a;
+  sumTwoDirections(a.n_, m, x_split, a.data_, a.offset_, a.padded_, bb.data_,
+                   b ? bb.offset_ : 0, bb.padded_, y_split);
+}
+
+void PaddedTerms::addDifferences(const PaddedTerms& a, const PaddedTerms* b, double* y_split) {
+  const PaddedTerms& bb = b ? *b : a;
+  addTwoDirections(a.n_, a.data_, a.offset_, a.padded_, bb.data_, b ? bb.offset_ : 0,
+                   bb.padded_, y_split);
 }
 
 void forceSweep(const ForceSweepIn& in, const ForceSweepOut& out) { forceSweepDispatch(in, out); }

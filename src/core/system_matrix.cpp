@@ -136,37 +136,49 @@ const std::vector<SymBlock>& SystemMatrix::fullDiagonal() const {
   return full_diag_;
 }
 
-void SystemMatrix::multiply(const ConstraintFilter& filter, const VecX& x_in, VecX& y_out) const {
-  multiplyAll(x_in, y_out);
-  filter.apply(y_out);
-}
-
 void SystemMatrix::multiplyAll(const VecX& x_in, VecX& y_out) const {
   const int n = numNodes();
   y_out.resize(3 * n);
   x_split_.resize(3 * n);
   y_split_.resize(3 * n);
   sweeps::splitComponents(x_in, x_split_.data());
-  const double* xs = x_split_.data();
-  double* ys = y_split_.data();
-  for (int c = 0; c < 3; ++c) {  // the node blocks m I
-    for (int i = 0; i < n; ++i) ys[c * n + i] = node_scale_[i] * xs[c * n + i];
-  }
-  for (size_t k = 0; k < coefficients_.size(); ++k) {
+  multiplySplit(x_split_.data(), y_split_.data());
+  sweeps::joinComponents(y_split_.data(), n, y_out.data());
+}
+
+void SystemMatrix::multiplySplit(const double* xs, double* ys) const {
+  const int n = numNodes();
+  const size_t count = coefficients_.size();
+  direction_terms_.resize(count);
+  const bool held = has_damping_axes_;
+  for (size_t k = 0; k < count; ++k) {
     const Coefficients& d = coefficients_[k];
     const int o = layout_->directions[k].offset;
-    terms_.reset(n, o);
-    const bool held = has_damping_axes_;
+    sweeps::PaddedTerms& t = direction_terms_[k];
+    t.reset(n, o);
     directionTerms(n - o, o, xs, xs + n, xs + 2 * n, d.iso.data(), d.axis.data(), d.u[0].data(),
                    d.u[1].data(), d.u[2].data(), held ? d.c.data() : nullptr,
                    held ? d.w[0].data() : nullptr, held ? d.w[1].data() : nullptr,
-                   held ? d.w[2].data() : nullptr, terms_.term(0), terms_.term(1),
-                   terms_.term(2));
-    terms_.addDifferences(ys);
+                   held ? d.w[2].data() : nullptr, t.term(0), t.term(1), t.term(2));
   }
-  sweeps::joinComponents(y_split_.data(), n, y_out.data());
+  // The node blocks m I and the directions two at a time: a pass over y per
+  // pair instead of one per direction.
+  if (count == 0) {
+    for (int c = 0; c < 3; ++c) {
+      for (int i = 0; i < n; ++i) ys[c * n + i] = node_scale_[i] * xs[c * n + i];
+    }
+  }
+  for (size_t k = 0; k < count; k += 2) {
+    const sweeps::PaddedTerms* second = k + 1 < count ? &direction_terms_[k + 1] : nullptr;
+    if (k == 0) {
+      sweeps::PaddedTerms::sumDifferences(node_scale_.data(), xs, direction_terms_[k], second, ys);
+    } else {
+      sweeps::PaddedTerms::addDifferences(direction_terms_[k], second, ys);
+    }
+  }
   for (const auto& [node, block] : node_blocks_) {
-    y_out.segment<3>(3 * node) += block * Vec3(x_in.segment<3>(3 * node));
+    const Vec3 y = block * Vec3(xs[node], xs[n + node], xs[2 * n + node]);
+    for (int c = 0; c < 3; ++c) ys[c * n + node] += y[c];
   }
 }
 

@@ -2,7 +2,8 @@
 // shape (chains, two-column strips, where a shear diagonal and a row share
 // an offset, squares) its product and block diagonal equal the sums over
 // its blocks written out per spring, with and without held damping axes;
-// springs it cannot lay out are refused.
+// springs it cannot lay out are refused. Extra node blocks (contact friction)
+// are part of both.
 #include <gtest/gtest.h>
 
 #include <random>
@@ -43,6 +44,7 @@ TEST(SystemMatrix, ProductAndDiagonalAreTheSumsOfTheBlocksOnEveryGridShape) {
       A.resize(m.layout);
       A.reset(m.mass, 0.25);
       std::vector<Mat3> blocks(springs);
+      std::vector<Mat3> extra(n, Mat3::Zero());
       for (int k = 0; k < springs; ++k) {
         const double iso = coefficient(rng), axis = coefficient(rng);
         const Vec3 u = unitVector(rng);
@@ -55,12 +57,19 @@ TEST(SystemMatrix, ProductAndDiagonalAreTheSumsOfTheBlocksOnEveryGridShape) {
           blocks[k] += c * w * w.transpose();
         }
       }
+      // Extra node blocks (a contact's friction): on the first and last node.
+      for (int node : {0, n - 1}) {
+        const Vec3 w = unitVector(rng);
+        const Mat3 block = coefficient(rng) * Mat3::Identity() + w * w.transpose();
+        A.addNodeBlock(node, block);
+        extra[node] += block;
+      }
       VecX x(3 * n);
       for (int k = 0; k < x.size(); ++k) x[k] = coefficient(rng);
       VecX y_ref(3 * n);
       std::vector<Mat3> diag(n);
       for (int i = 0; i < n; ++i) {
-        diag[i] = (m.mass[i] + 0.25) * Mat3::Identity();
+        diag[i] = (m.mass[i] + 0.25) * Mat3::Identity() + extra[i];
         y_ref.segment<3>(3 * i) = diag[i] * x.segment<3>(3 * i);
       }
       for (int k = 0; k < springs; ++k) {

@@ -1,0 +1,24 @@
+// The vector operations of conjugateGradient on vectors split by component
+// (x of every node, then y, then z: the layout of SystemMatrix's product),
+// fused so that each iteration passes over its vectors three times instead of
+// seven, in loops the compiler vectorises (built for x86-64-v3 and the
+// baseline, as the spring sweeps). Sums keep eight partial sums, so results
+// differ from a sequential sum by round-off only.
+#pragma once
+
+namespace cloth_sim {
+namespace cg_kernels {
+
+/// a . b over n entries.
+double dot(int n, const double* a, const double* b);
+/// x += alpha p and r -= alpha q; returns r . r (the new residual's square).
+double updateSolution(int n, double alpha, const double* p, const double* q, double* x,
+                      double* r);
+/// z = D^-1 r for m nodes, D^-1 given as symmetric blocks split by entry
+/// (inv[0..5][i]: xx, yy, zz, xy, xz, yz of node i); returns r . z.
+double blockJacobi(int m, const double* const inv[6], const double* r, double* z);
+/// p = z + beta p.
+void updateDirection(int n, double beta, const double* z, double* p);
+
+}  // namespace cg_kernels
+}  // namespace cloth_sim

@@ -1,0 +1,87 @@
+#include "cloth_sim/cg_kernels.hpp"
+
+#include "vectorised.hpp"
+
+namespace cloth_sim {
+namespace cg_kernels {
+
+namespace {
+
+/// The eight partial sums folded pairwise.
+inline double fold(const double* s) {
+  return ((s[0] + s[1]) + (s[2] + s[3])) + ((s[4] + s[5]) + (s[6] + s[7]));
+}
+
+}  // namespace
+
+CLOTH_SIM_VECTORISED
+double dot(int n, const double* __restrict a, const double* __restrict b) {
+  double s[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+  int i = 0;
+  for (; i + 8 <= n; i += 8) {
+    for (int k = 0; k < 8; ++k) s[k] += a[i + k] * b[i + k];
+  }
+  for (; i < n; ++i) s[0] += a[i] * b[i];
+  return fold(s);
+}
+
+CLOTH_SIM_VECTORISED
+double updateSolution(int n, double alpha, const double* __restrict p,
+                      const double* __restrict q, double* __restrict x, double* __restrict r) {
+  double s[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+  int i = 0;
+  for (; i + 8 <= n; i += 8) {
+    for (int k = 0; k < 8; ++k) {
+      x[i + k] += alpha * p[i + k];
+      const double ri = r[i + k] - alpha * q[i + k];
+      r[i + k] = ri;
+      s[k] += ri * ri;
+    }
+  }
+  for (; i < n; ++i) {
+    x[i] += alpha * p[i];
+    r[i] -= alpha * q[i];
+    s[0] += r[i] * r[i];
+  }
+  return fold(s);
+}
+
+CLOTH_SIM_VECTORISED
+double blockJacobi(int m, const double* const inv[6], const double* __restrict r,
+                   double* __restrict z) {
+  const double *__restrict a0 = inv[0], *__restrict a1 = inv[1], *__restrict a2 = inv[2],
+               *__restrict a3 = inv[3], *__restrict a4 = inv[4], *__restrict a5 = inv[5];
+  const double *__restrict r0 = r, *__restrict r1 = r + m, *__restrict r2 = r + 2 * m;
+  double *__restrict z0 = z, *__restrict z1 = z + m, *__restrict z2 = z + 2 * m;
+  double s[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+  int i = 0;
+  for (; i + 8 <= m; i += 8) {
+    for (int k = 0; k < 8; ++k) {
+      const int j = i + k;
+      const double x = r0[j], y = r1[j], w = r2[j];
+      const double zx = a0[j] * x + a3[j] * y + a4[j] * w;
+      const double zy = a3[j] * x + a1[j] * y + a5[j] * w;
+      const double zz = a4[j] * x + a5[j] * y + a2[j] * w;
+      z0[j] = zx;
+      z1[j] = zy;
+      z2[j] = zz;
+      s[k] += x * zx + y * zy + w * zz;
+    }
+  }
+  for (; i < m; ++i) {
+    const double x = r0[i], y = r1[i], w = r2[i];
+    z0[i] = a0[i] * x + a3[i] * y + a4[i] * w;
+    z1[i] = a3[i] * x + a1[i] * y + a5[i] * w;
+    z2[i] = a4[i] * x + a5[i] * y + a2[i] * w;
+    s[0] += x * z0[i] + y * z1[i] + w * z2[i];
+  }
+  return fold(s);
+}
+
+CLOTH_SIM_VECTORISED
+void updateDirection(int n, double beta, const double* __restrict z, double* __restrict p) {
+  for (int i = 0; i < n; ++i) p[i] = z[i] + beta * p[i];
+}
+
+}  // namespace cg_kernels
+}  // namespace cloth_sim
