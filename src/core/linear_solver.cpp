@@ -216,10 +216,21 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
   const std::vector<char>& free = filter.freeMask();
   filter.apply(x);
 
+  // The iteration runs on vectors split by component (the product's layout).
+  ws.x.resize(dim);
+  ws.r.resize(dim);
+  ws.z.resize(dim);
+  ws.p.resize(dim);
+  ws.q.resize(dim);
+  double* xs = ws.x.data();
+  double* rs = ws.r.data();
+  sweeps::splitComponents(b, rs);
+  filter.applySplit(rs);  // S b: also the residual of a cold start
+
   CgResult result;
   bool fresh_factor = false;
   bool rerouted = false;  ///< a fresh factor of the rerouted matrix (CholeskyFactor)
-  const double b_norm = filter.norm(b);
+  const double b_norm = std::sqrt(cg_kernels::dot(dim, rs, rs));
   if (!(b_norm > 0.0)) {
     x.setZero();
     result.converged = std::isfinite(b_norm);
@@ -267,16 +278,6 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
     ws.multigrid->constrain(filter);
   }
 
-  // The iteration runs on vectors split by component (the product's layout).
-  ws.x.resize(dim);
-  ws.r.resize(dim);
-  ws.z.resize(dim);
-  ws.p.resize(dim);
-  ws.q.resize(dim);
-  double* xs = ws.x.data();
-  double* rs = ws.r.data();
-  sweeps::splitComponents(b, rs);
-  filter.applySplit(rs);
   const bool cold = x.isZero(0.0);  // Newton's steppers: no product needed
   if (cold) {
     ws.x.setZero();

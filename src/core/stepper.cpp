@@ -241,7 +241,7 @@ StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v)
   stats.linear_converged = cg.converged;
   stats.newton_iterations = 1;
 
-  dv_ += pinned_dv_;
+  if (pins_move) dv_ += pinned_dv_;  // else it is zero
   v += dv_;
   x += h * v;
   if (contact_on_) {  // reaction = A dv - rhs0: what the constraints supplied, times h
@@ -252,7 +252,7 @@ StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v)
     }
     bh_ = h;
   }
-  dv_ -= pinned_dv_;  // the free part warm-starts the next solve
+  if (pins_move) dv_ -= pinned_dv_;  // the free part warm-starts the next solve
   placePins(x);
   return stats;
 }
