@@ -94,8 +94,6 @@ class ConstraintFilter {
   /// v <- S v for a vector split by component (v[c * n + i], n nodes: the
   /// layout of conjugateGradient's vectors).
   void applySplit(double* v) const;
-  /// |S v| without changing v.
-  double norm(const VecX& v) const;
 
   bool operator==(const ConstraintFilter& o) const {
     return free_ == o.free_ && nodes_ == o.nodes_ && projectors_ == o.projectors_;

@@ -1,7 +1,5 @@
 #include "cloth_sim/constraint_filter.hpp"
 
-#include <cmath>
-
 namespace cloth_sim {
 
 void ConstraintFilter::unproject(int node) {
@@ -27,17 +25,6 @@ void ConstraintFilter::applySplit(double* v) const {
     v[n + i] = s[1];
     v[2 * n + i] = s[2];
   }
-}
-
-double ConstraintFilter::norm(const VecX& v) const {
-  double sum = 0.0;
-  for (size_t i = 0; i < free_.size(); ++i) {
-    if (free_[i] && slot_[i] < 0) sum += v.segment<3>(3 * i).squaredNorm();
-  }
-  for (size_t k = 0; k < nodes_.size(); ++k) {
-    sum += (projectors_[k] * Vec3(v.segment<3>(3 * nodes_[k]))).squaredNorm();
-  }
-  return std::sqrt(sum);
 }
 
 }  // namespace cloth_sim
