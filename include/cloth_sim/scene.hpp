@@ -135,6 +135,16 @@ struct Scene {
   int numNodes() const { return cloth.rows * cloth.cols; }
 };
 
+/// The solver of a scene file that names no `solver.method` (docs/scene.md,
+/// "solver"): linearly implicit bdf2 (one Newton iteration a step) at a
+/// fixed dt of 1/160 s, CG to 1e-2 with the automatic preconditioner. On the
+/// benchmark's hang32 and hang64 it costs within 1.5x of the cheapest setting
+/// at its error (~1e-3; docs/benchmark.md), and a stiff cloth (stretch up to
+/// 1e9) still runs faster than real time (an error-controlled default did
+/// not: docs/stability.md). Fields the scene names override it. A
+/// default-constructed Scene::Solver is the plain implicit_euler of the table.
+Scene::Solver automaticSolver();
+
 /// Parses and validates YAML text. Throws SceneError naming the field.
 Scene parseScene(const std::string& yaml_text,
                  const std::vector<std::string>& overrides = {});

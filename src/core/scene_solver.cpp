@@ -16,6 +16,8 @@ void readSolver(const YAML::Node& node, Scene::Solver* solver) {
                   "multigrid_reuse", "project_compression", "newton_tolerance",
                   "newton_max_iterations", "max_halvings", "recovery", "error_tolerance",
                   "dt_min", "dt_max"});
+  // No method named: the fast path (automaticSolver), under what is named.
+  if (!f.has("method")) *solver = automaticSolver();
   if (f.has("method")) {
     const std::string name = readName(f.get("method"), f.path("method"));
     if (!parseMethod(name, &solver->method)) {
@@ -110,4 +112,15 @@ void validateSolver(const Scene::Solver& solver) {
 }
 
 }  // namespace scene_yaml
+
+Scene::Solver automaticSolver() {
+  Scene::Solver solver;
+  solver.method = Method::Bdf2;
+  solver.newton_max_iterations = 1;
+  solver.dt = 1.0 / 160.0;
+  solver.tolerance = 1e-2;
+  solver.preconditioner = Preconditioner::Auto;
+  return solver;
+}
+
 }  // namespace cloth_sim

@@ -1,5 +1,6 @@
 #include "live_tuning.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
@@ -86,7 +87,18 @@ Status tuningFromConfig(const std::string& scene_yaml, const ClothSimConfig& con
                         Tuning* tuning) {
   cloth_sim::Scene scene;
   try {
-    scene = cloth_sim::parseScene(scene_yaml, tuningOverrides(config));
+    std::vector<std::string> overrides = tuningOverrides(config);
+    // The scene's own method is not written back: naming it would turn a
+    // scene without one from the automatic solver to the method's plain
+    // fixed-step defaults (cloth_sim::automaticSolver).
+    if (config.method == cloth_sim::toString(cloth_sim::parseScene(scene_yaml).solver.method)) {
+      overrides.erase(std::remove_if(overrides.begin(), overrides.end(),
+                                     [](const std::string& o) {
+                                       return o.rfind("solver.method=", 0) == 0;
+                                     }),
+                      overrides.end());
+    }
+    scene = cloth_sim::parseScene(scene_yaml, overrides);
   } catch (const cloth_sim::SceneError& e) {
     return Status::error(e.what());
   }

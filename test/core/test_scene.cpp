@@ -214,14 +214,16 @@ TEST(SceneDefaults, OnlyRowsAndColsAreNeeded) {
   EXPECT_EQ(scene.gravity, Vec3(0, 0, -9.81));
   EXPECT_EQ(scene.air_drag, 0.0);
   EXPECT_TRUE(scene.pins.empty());
-  EXPECT_EQ(scene.solver.method, Method::ImplicitEuler);
-  EXPECT_EQ(scene.solver.dt, 0.004);
-  EXPECT_EQ(scene.solver.tolerance, 1e-6);
+  // No method named: the automatic solver (SceneSolver.* pins its values).
+  EXPECT_EQ(scene.solver.method, automaticSolver().method);
+  EXPECT_EQ(scene.solver.dt, automaticSolver().dt);
+  EXPECT_EQ(scene.solver.tolerance, automaticSolver().tolerance);
+  EXPECT_EQ(scene.solver.error_tolerance, automaticSolver().error_tolerance);
+  EXPECT_EQ(scene.solver.newton_max_iterations, automaticSolver().newton_max_iterations);
   EXPECT_EQ(scene.solver.max_iterations, 500);
   EXPECT_EQ(scene.solver.preconditioner, Preconditioner::Auto);
   EXPECT_TRUE(scene.solver.project_compression);
   EXPECT_EQ(scene.solver.newton_tolerance, 1e-8);
-  EXPECT_EQ(scene.solver.newton_max_iterations, 20);
   EXPECT_EQ(scene.solver.max_halvings, 8);
   EXPECT_TRUE(scene.solver.recovery);
   EXPECT_EQ(scene.initial.stretch, 1.0);
@@ -229,9 +231,16 @@ TEST(SceneDefaults, OnlyRowsAndColsAreNeeded) {
   EXPECT_EQ(scene.initial.seed, 0u);
   EXPECT_FALSE(scene.initial.collapse);
   EXPECT_TRUE(scene.events.empty());
-  // The documented defaults are the struct's defaults.
-  EXPECT_EQ(scene.solver.dt, defaults.solver.dt);
+  // The documented defaults are the struct's defaults; with a method named,
+  // the solver's too.
   EXPECT_EQ(scene.cloth.mass, defaults.cloth.mass);
+  const Scene named = parseScene("cloth: {rows: 3, cols: 1}\nsolver: {method: implicit_euler}");
+  EXPECT_EQ(named.solver.method, Method::ImplicitEuler);
+  EXPECT_EQ(named.solver.dt, 0.004);
+  EXPECT_EQ(named.solver.dt, defaults.solver.dt);
+  EXPECT_EQ(named.solver.tolerance, 1e-6);
+  EXPECT_EQ(named.solver.newton_max_iterations, 20);
+  EXPECT_FALSE(named.solver.error_tolerance.has_value());
 }
 
 TEST(SceneDefaults, NamedGroupWithoutValuesGetsGroupDefaults) {
@@ -391,7 +400,7 @@ TEST(SceneParse, EmptyOptionalSectionsMeanDefaults) {
   const Scene scene = parseScene("cloth: {rows: 2, cols: 2}\nsolver:\ninitial:\nevents:\npins:\n");
   EXPECT_TRUE(scene.pins.empty());
   EXPECT_TRUE(scene.events.empty());
-  EXPECT_EQ(scene.solver.dt, 0.004);
+  EXPECT_EQ(scene.solver.dt, automaticSolver().dt);
 }
 
 // ----------------------------------------------------------- rejections ----
