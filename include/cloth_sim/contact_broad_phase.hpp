@@ -62,7 +62,9 @@ class ContactBroadPhase {
   };
   /// Patch layout for n nodes (a grid if setGrid's matches, else runs).
   void layOut(int num_nodes);
-  void resetBoxes();
+  /// The patch boxes around every node's start x0[i] and end endOf(i).
+  template <class EndOf>
+  void sweep(const VecX& x0, const EndOf& end_of);
   /// Near flags of every patch and collider, then the candidates.
   void classify(const CollidersOverStep& colliders);
   /// Whether the swept box of `b` comes within the thickness of collider k.

@@ -57,47 +57,54 @@ void ContactBroadPhase::layOut(int num_nodes) {
   patch_near_any_.resize(boxes_.size());
 }
 
-void ContactBroadPhase::resetBoxes() {
+template <class EndOf>
+void ContactBroadPhase::sweep(const VecX& x0, const EndOf& end_of) {
+  layOut(static_cast<int>(x0.size() / 3));
   const double inf = std::numeric_limits<double>::infinity();
   for (PatchBoxes& b : boxes_) {
     b.lo0 = b.lo1 = Vec3::Constant(inf);
     b.hi0 = b.hi1 = Vec3::Constant(-inf);
     b.finite = true;
   }
+  // Row by row, each patch's stretch of the row in locals (no per-node
+  // patch lookup, one write per stretch).
+  for (int r = 0; r < rows_; ++r) {
+    const int band = r / side_rows_;
+    for (int pc = 0; pc < patch_cols_; ++pc) {
+      PatchBoxes& b = boxes_[band * patch_cols_ + pc];
+      Vec3 lo0 = b.lo0, hi0 = b.hi0, lo1 = b.lo1, hi1 = b.hi1;
+      double sum = 0.0;  // non-finite iff some coordinate is (or they overflow)
+      const int end = std::min(cols_, (pc + 1) * side_cols_);
+      for (int i = r * cols_ + pc * side_cols_, last = r * cols_ + end; i < last; ++i) {
+        const Vec3 p0 = x0.segment<3>(3 * i), p1 = end_of(i);
+        lo0 = lo0.cwiseMin(p0);
+        hi0 = hi0.cwiseMax(p0);
+        lo1 = lo1.cwiseMin(p1);
+        hi1 = hi1.cwiseMax(p1);
+        sum += p0.sum() + p1.sum();
+      }
+      b.lo0 = lo0;
+      b.hi0 = hi0;
+      b.lo1 = lo1;
+      b.hi1 = hi1;
+      // min/max may drop a NaN: such a patch is kept near everything.
+      b.finite = b.finite && std::isfinite(sum);
+    }
+  }
 }
 
 void ContactBroadPhase::build(const CollidersOverStep& colliders, const VecX& x0,
                               const VecX& x1) {
-  layOut(static_cast<int>(x0.size() / 3));
-  resetBoxes();
-  for (int i = 0; i < num_nodes_; ++i) {
-    PatchBoxes& b = boxes_[patch_of_[i]];
-    const Vec3 p0 = x0.segment<3>(3 * i), p1 = x1.segment<3>(3 * i);
-    b.lo0 = b.lo0.cwiseMin(p0);
-    b.hi0 = b.hi0.cwiseMax(p0);
-    b.lo1 = b.lo1.cwiseMin(p1);
-    b.hi1 = b.hi1.cwiseMax(p1);
-    // min/max may drop a NaN: such a patch is kept near everything.
-    b.finite = b.finite && std::isfinite(p0.sum() + p1.sum());
-  }
+  sweep(x0, [&x1](int i) { return Vec3(x1.segment<3>(3 * i)); });
   classify(colliders);
 }
 
 void ContactBroadPhase::buildPredicted(const CollidersOverStep& colliders, const VecX& x0,
                                        const VecX& v0, const Vec3& gravity, double h) {
-  layOut(static_cast<int>(x0.size() / 3));
-  resetBoxes();
-  for (int i = 0; i < num_nodes_; ++i) {
-    PatchBoxes& b = boxes_[patch_of_[i]];
-    // The same prediction as ContactSet::begin's.
-    const Vec3 p0 = x0.segment<3>(3 * i);
-    const Vec3 p1 = p0 + h * v0.segment<3>(3 * i) + h * h * gravity;
-    b.lo0 = b.lo0.cwiseMin(p0);
-    b.hi0 = b.hi0.cwiseMax(p0);
-    b.lo1 = b.lo1.cwiseMin(p1);
-    b.hi1 = b.hi1.cwiseMax(p1);
-    b.finite = b.finite && std::isfinite(p0.sum() + p1.sum());
-  }
+  // The same prediction as ContactSet::begin's.
+  sweep(x0, [&](int i) {
+    return Vec3(x0.segment<3>(3 * i) + h * v0.segment<3>(3 * i) + h * h * gravity);
+  });
   classify(colliders);
 }
 
