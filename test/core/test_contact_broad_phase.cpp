@@ -114,7 +114,8 @@ TEST(ContactBroadPhase, NeverDropsAPairTheExactQueriesFind) {
     const int rows = 5 + trial % 13, cols = 3 + (trial * 7) % 19;
     CollidersOverStep colliders;
     colliders.colliders = &shapes;
-    colliders.thickness = trial % 5 == 0 ? 0.0 : 0.02 * unit(rng);
+    // Up to 10 cm: paths that pass the shape within the thickness only.
+    colliders.thickness = trial % 5 == 0 ? 0.0 : 0.1 * unit(rng);
     const bool moving = trial % 3 != 0;
     for (const Collider& c : shapes) {
       colliders.start.push_back(moving ? randomPose(c, rng, 0.1) : c.scenePose());
@@ -149,8 +150,10 @@ TEST(ContactBroadPhase, NeverDropsAPairTheExactQueriesFind) {
 }
 
 TEST(ContactBroadPhase, KeepsAFastNodeCrossingAThinBoxInOneStep) {
-  // 1 m in a step through a 1 cm box; both ends 0.5 m from it, and every
-  // other node of the patch far away.
+  // 1 m in a step through a 1 cm box; both ends 0.5 m from it. Every other
+  // node falls the same 1 m 2.5 m to the side of the box, so neither the
+  // start nor the end positions of the fast node's patch meet the box: only
+  // their hull (the swept box) does.
   ColliderParams p;
   p.type = ColliderParams::Type::Box;
   p.half_extents = Vec3(0.5, 0.5, 0.005);
@@ -163,7 +166,7 @@ TEST(ContactBroadPhase, KeepsAFastNodeCrossingAThinBoxInOneStep) {
   VecX x0(3 * rows * cols), x1(3 * rows * cols);
   for (int i = 0; i < rows * cols; ++i) {
     x0.segment<3>(3 * i) = Vec3(3.0 + 0.01 * (i % cols), 0.01 * (i / cols), 0.5);
-    x1.segment<3>(3 * i) = x0.segment<3>(3 * i);
+    x1.segment<3>(3 * i) = x0.segment<3>(3 * i) - Vec3(0.0, 0.0, 1.0);
   }
   const int fast = 9 * cols + 10;  // patch (1, 1)
   x0.segment<3>(3 * fast) = Vec3(0.1, 0.0, 0.5);
