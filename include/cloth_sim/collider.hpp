@@ -6,6 +6,7 @@
 
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "cloth_sim/scene.hpp"
 #include "cloth_sim/types.hpp"
@@ -66,6 +67,14 @@ class Collider {
   Vec3 normal_ = Vec3::UnitZ();
   Vec3 segment_ = Vec3::Zero();
   Pose scene_pose_;
+};
+
+/// The colliders over one step: their shapes, poses at its start and end.
+struct CollidersOverStep {
+  const std::vector<Collider>* colliders = nullptr;
+  std::vector<Pose> start, end;
+  double thickness = 0.0;
+  bool empty() const { return !colliders || colliders->empty(); }
 };
 
 /// The first contact of a point that moves from p0 to p1 (world) while the

@@ -19,19 +19,12 @@
 #include <vector>
 
 #include "cloth_sim/collider.hpp"
+#include "cloth_sim/contact_broad_phase.hpp"
 #include "cloth_sim/constraint_filter.hpp"
 #include "cloth_sim/linear_solver.hpp"
 #include "cloth_sim/types.hpp"
 
 namespace cloth_sim {
-
-/// The colliders over one step: their shapes, poses at its start and end.
-struct CollidersOverStep {
-  const std::vector<Collider>* colliders = nullptr;
-  std::vector<Pose> start, end;
-  double thickness = 0.0;
-  bool empty() const { return !colliders || colliders->empty(); }
-};
 
 /// What the last update found.
 enum class ContactCheck { Consistent, Changed, Failed };
@@ -70,6 +63,14 @@ class ContactSet {
   /// A lagged friction direction that would move its node by less than this
   /// over the step (m) counts as settled.
   static constexpr double kSlipTolerance = 1e-9;
+
+  /// The cloth's grid (node i = row * cols + col), for the broad phase's patches.
+  void setGrid(int rows, int cols) { broad_.setGrid(rows, cols); }
+  /// The broad phase of the last begin or update.
+  const ContactBroadPhase& broadPhase() const { return broad_; }
+  /// Node-collider pairs the last begin or update queried exactly (those the
+  /// broad phase kept; a node already touching that collider counts too).
+  long lastQueries() const { return queries_; }
 
   /// Drops every contact (a reset).
   void clear() {
@@ -183,6 +184,8 @@ class ContactSet {
   /// Whether the node in `slot` (-1: none) has a plane of this collider.
   bool touches(int slot, int collider) const;
 
+  ContactBroadPhase broad_;
+  long queries_ = 0;
   std::vector<NodeContact> nodes_;
   std::vector<int> slot_;  ///< per node: index in nodes_, -1 if not in contact
   std::vector<int> released_;  ///< nodes released this step (cycling guard)

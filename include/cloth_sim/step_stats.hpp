@@ -61,6 +61,9 @@ struct StepStats {
   double max_penetration = 0.0;  ///< deepest inside surface + thickness at the step's end, m
   double contact_work = 0.0;     ///< work of the contact forces on the cloth, J
   int contact_passes = 0;        ///< solves until the contact set was consistent
+  /// node-collider pairs queried exactly by the contact detection, every pass
+  /// (the broad phase's survivors, ContactSet::lastQueries)
+  long contact_queries = 0;
   // self-collision (zero / infinity when disabled)
   int self_contacts = 0;  ///< non-adjacent pairs closer than the thickness at the step's end
   /// smallest distance between non-adjacent parts at the step's end, m
@@ -83,6 +86,7 @@ struct StepStats {
     assembly_s += part.assembly_s;
     solve_s += part.solve_s;
     contact_passes += part.contact_passes;
+    contact_queries += part.contact_queries;
     self_collision_s += part.self_collision_s;
     self_solves += part.self_solves;
   }

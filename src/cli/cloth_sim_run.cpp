@@ -218,6 +218,7 @@ struct RunStats {
   int contacts = 0;                   ///< at the final step
   double contact_normal_force = 0.0;  ///< at the final step, N
   long contact_passes = 0;
+  long contact_queries = 0;
   int self_contacts = 0;  ///< at the final step
   double self_collision_s = 0.0;
   std::optional<std::string> failure;
@@ -240,6 +241,7 @@ struct RunStats {
     contacts = s.contacts;
     contact_normal_force = s.contact_normal_force;
     contact_passes += s.contact_passes;
+    contact_queries += s.contact_queries;
     self_contacts = s.self_contacts;
     self_collision_s += s.self_collision_s;
   }
@@ -279,6 +281,8 @@ bool writeStats(const std::string& path, const RunStats& r, const cloth_sim::Sim
   std::fprintf(f, "  \"max_penetration\": %s,\n", jsonNumber(sim.maxPenetration()).c_str());
   std::fprintf(f, "  \"contact_passes_mean\": %s,\n",
                jsonNumber(r.perStep(static_cast<double>(r.contact_passes))).c_str());
+  std::fprintf(f, "  \"contact_queries_mean\": %s,\n",
+               jsonNumber(r.perStep(static_cast<double>(r.contact_queries))).c_str());
   // Self-collision: 0 and null without it.
   std::fprintf(f, "  \"self_contacts\": %d,\n", r.self_contacts);
   std::fprintf(f, "  \"min_self_distance\": %s,\n", jsonNumber(sim.minSelfDistance()).c_str());

@@ -157,16 +157,18 @@ void ContactSet::begin(const CollidersOverStep& colliders, const ConstraintFilte
     kept.push_back(c);
   }
   nodes_.swap(kept);
-  // New contacts on the predicted path.
-  const int n = pins.numNodes();
-  reindex(n);
-  for (int i = 0; i < n; ++i) {
+  // New contacts on the predicted path, of the nodes the broad phase keeps.
+  reindex(pins.numNodes());
+  broad_.buildPredicted(colliders, x0, v0, gravity, h);
+  queries_ = 0;
+  for (const int i : broad_.candidates()) {
     if (pins.isEliminated(i)) continue;
     const Vec3 p0 = x0.segment<3>(3 * i);
     const Vec3 p1 = p0 + h * v0.segment<3>(3 * i) + h * h * gravity;
     for (size_t k = 0; k < all.size(); ++k) {
       const int id = static_cast<int>(k);
-      if (touches(slot_[i], id)) continue;
+      if (!broad_.mayTouch(i, id) || touches(slot_[i], id)) continue;
+      ++queries_;
       const auto hit = firstContact(all[k], colliders.start[k], colliders.end[k], p0, p1,
                                     thickness, kPenetrationTolerance);
       if (!hit) continue;
@@ -379,13 +381,17 @@ ContactCheck ContactSet::update(const CollidersOverStep& colliders, const Constr
     ++k;
   }
 
-  // Every node against every collider: the swept path for new contacts, the
-  // end position for the penetration measure.
+  // Every node the broad phase keeps against its colliders: the swept path
+  // for new contacts, the end position for the penetration measure (a node
+  // it drops ends beyond the thickness: no penetration, no contact).
   max_penetration_ = 0.0;
-  const int n = pins.numNodes();
-  for (int i = 0; i < n; ++i) {
+  broad_.build(colliders, x0, x1);
+  queries_ = 0;
+  for (const int i : broad_.candidates()) {
     const Vec3 p0 = x0.segment<3>(3 * i), p1 = x1.segment<3>(3 * i);
     for (size_t k = 0; k < all.size(); ++k) {
+      if (!broad_.mayTouch(i, static_cast<int>(k))) continue;
+      ++queries_;
       const double depth = thickness - all[k].closest(p1, colliders.end[k]).distance;
       max_penetration_ = std::max(max_penetration_, depth);
       if (pins.isEliminated(i)) continue;

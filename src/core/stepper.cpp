@@ -78,7 +78,9 @@ StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
   } else {
     x0_ = x;
     v0_ = v;
+    contact_.setGrid(model.rows, model.cols);
     contact_.begin(colliders, filter_, x, v, model.gravity, h);
+    long queries = contact_.lastQueries();
     for (int pass = 1;; ++pass) {
       if (pass > 1) {
         x = x0_;
@@ -107,6 +109,7 @@ StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
       const ContactCheck check =
           contact_.update(colliders, filter_, model.mass, x0_, x, v, reaction_, bh_, model.gravity,
                       settings_.tolerance);
+      queries += contact_.lastQueries();
       if (check == ContactCheck::Consistent) break;
       if (check == ContactCheck::Failed) {
         stats.ok = false;
@@ -119,6 +122,7 @@ StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
         break;
       }
     }
+    stats.contact_queries = queries;
     if (stats.ok) {
       stats.contacts = contact_.numContacts();
       stats.contact_normal_force = contact_.normalForce();
