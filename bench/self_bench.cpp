@@ -265,6 +265,16 @@ Options parse(int argc, char** argv) {
   return o;
 }
 
+/// `text` as the inside of a JSON string.
+std::string jsonEscaped(const std::string& text) {
+  std::string out;
+  for (char c : text) {
+    if (c == '"' || c == '\\') out += '\\';
+    out += c == '\n' ? ' ' : c;
+  }
+  return out;
+}
+
 std::string number(double v) {
   if (std::isnan(v)) return "null";
   if (std::isinf(v)) return "\"inf\"";
@@ -316,7 +326,8 @@ int run(const Options& o) {
                 "\"cpu_s_per_sim_s\": %s, \"cpu_ms_per_step\": %s, \"max_intersections\": %d, "
                 "\"steps_intersecting\": %ld, \"min_distance\": %s, \"max_strain\": %s, "
                 "\"error_max\": %s, \"error_final\": %s}\n",
-                spec.text.c_str(), r.ok ? "true" : "false", r.failure.c_str(), r.steps,
+                jsonEscaped(spec.text).c_str(), r.ok ? "true" : "false",
+                jsonEscaped(r.failure).c_str(), r.steps,
                 number(r.cpu_s / (r.steps * spec.dt)).c_str(),
                 number(1e3 * r.cpu_s / r.steps).c_str(), r.max_intersections,
                 r.steps_intersecting, number(r.min_distance).c_str(),
