@@ -347,7 +347,23 @@ struct BulletPeer::Impl {
 BulletPeer::BulletPeer(const Model& model, const VecX& x0, const std::vector<int>& pinned,
                        const BulletSettings& settings, const VecX& v0,
                        const BulletContact& contact)
-    : settings_(settings) {
+    : settings_(settings), mass_(model.mass.begin(), model.mass.end()) {
+  const bool self = contact.self_collision;
+  if (self) {
+    if (!(contact.self_thickness > 0) || !std::isfinite(contact.self_thickness)) {
+      throw std::invalid_argument("self_collision.thickness: must be > 0 and finite");
+    }
+    if (!(contact.self_friction >= 0) || !std::isfinite(contact.self_friction)) {
+      throw std::invalid_argument("self_collision.friction: must be >= 0 and finite");
+    }
+    for (const BulletBox& b : contact.boxes) {
+      if (b.friction > 0 && contact.self_friction == 0) {
+        throw std::invalid_argument(
+            "self_collision.friction: Bullet scales a box's friction by the soft body's "
+            "kDF = sqrt(self friction), so boxes with friction need self friction > 0");
+      }
+    }
+  }
   if (!contact.boxes.empty()) {
     if (!(contact.margin >= 0) || !std::isfinite(contact.margin)) {
       throw std::invalid_argument("contact.margin: must be >= 0 and finite");
@@ -416,14 +432,18 @@ BulletPeer::BulletPeer(const Model& model, const VecX& x0, const std::vector<int
     }
     m.rest_lengths.push_back(s.rest_length);
   }
-  body.m_bUpdateRtCst = false;  // keep our rest lengths
+  if (self) {
+    // The cloth's triangles as Bullet faces: what its self-collision tests.
+    for (const auto& t : model.triangles) body.appendFace(t[0], t[1], t[2]);
+  }
+  body.m_bUpdateRtCst = false;  // keep our rest lengths (appendLink/appendFace set it)
   for (int i = 0; i < n; ++i) {
     btSoftBody::Node& node = body.m_nodes[i];
     node.m_x = node.m_q = toBt(x0, i);
     node.m_v = node.m_vn = (v0.size() && !is_pinned[i]) ? toBt(v0, i) : btVector3(0, 0, 0);
   }
   body.setActivationState(DISABLE_DEACTIVATION);    // never put to sleep
-  if (contact.boxes.empty()) {
+  if (contact.boxes.empty() && !self) {
     body.m_cfg.collisions = 0;                      // no contact of any kind
     m.world->addSoftBody(&body, 0, 0);              // filter group/mask 0: no pairs
   } else {
@@ -432,17 +452,37 @@ BulletPeer::BulletPeer(const Model& model, const VecX& x0, const std::vector<int
     // predictDeformableMotion sets m_q = m_x), a contact when it is within
     // the margin; the contact solve acts on the predictor's v* (see
     // PerLinkMassSpringForce::addScaledHessian); friction kDF * the rigid's
-    // friction, so kDF = 1 and the rigid carries mu. (SDF_RD alone does
-    // nothing in 3.24: nodes are tested only with SDF_RDN.)
-    body.m_cfg.collisions = btSoftBody::fCollision::SDF_RD | btSoftBody::fCollision::SDF_RDN;
-    body.m_cfg.kDF = 1.0;
+    // friction. (SDF_RD alone does nothing in 3.24: nodes are tested only
+    // with SDF_RDN.) Self-collision (as its DeformableSelfCollision example):
+    // VF_DD, the only soft-soft mode the deformable world runs
+    // (btSoftBody::defaultCollisionHandler switches on the whole soft-soft
+    // mask, so VF_DD must be the only bit of it).
+    int collisions = 0;
+    if (!contact.boxes.empty()) {
+      collisions |= btSoftBody::fCollision::SDF_RD | btSoftBody::fCollision::SDF_RDN;
+    }
+    if (self) collisions |= btSoftBody::fCollision::VF_DD;
+    body.m_cfg.collisions = collisions;
+    // A self pair's friction is kDF * kDF, a box's kDF * its own.
+    const double kdf = self ? std::sqrt(contact.self_friction) : 1.0;
+    body.m_cfg.kDF = kdf;
     body.m_cfg.kKHR = 1.0;
     body.m_cfg.kCHR = 1.0;
-    body.getCollisionShape()->setMargin(contact.margin);
+    body.getCollisionShape()->setMargin(self ? 0.5 * contact.self_thickness : contact.margin);
     body.setCollisionFlags(0);
-    m.world->getWorldInfo().m_sparsesdf.setDefaultVoxelsz(settings.sdf_voxel);
-    m.world->getWorldInfo().m_sparsesdf.Reset();
-    m.world->addSoftBody(&body);                    // default filters: collides with rigids
+    if (contact.boxes.empty()) {
+      m.world->addSoftBody(&body, 0, 0);            // no rigid pairs; self-collision is not
+    } else {                                        // a broadphase pair
+      m.world->getWorldInfo().m_sparsesdf.setDefaultVoxelsz(settings.sdf_voxel);
+      m.world->getWorldInfo().m_sparsesdf.Reset();
+      m.world->addSoftBody(&body);                  // default filters: collides with rigids
+    }
+    if (self) {
+      body.setSelfCollision(true);
+      // predictDeformableMotion builds the face tree only when it updates
+      // the constants, which m_bUpdateRtCst = false turns off: build it here.
+      body.initializeFaceTree();
+    }
     for (const BulletBox& b : contact.boxes) {
       auto shape = std::make_unique<btBoxShape>(
           btVector3(b.half_extents.x(), b.half_extents.y(), b.half_extents.z()));
@@ -459,7 +499,7 @@ BulletPeer::BulletPeer(const Model& model, const VecX& x0, const std::vector<int
       btRigidBody::btRigidBodyConstructionInfo info(0.0, nullptr, shape.get());
       info.m_startWorldTransform = pose;
       auto rigid = std::make_unique<btRigidBody>(info);
-      rigid->setFriction(b.friction);
+      rigid->setFriction(kdf > 0 ? b.friction / kdf : 0.0);
       m.world->addRigidBody(rigid.get());
       m.box_shapes.push_back(std::move(shape));
       m.boxes.push_back(std::move(rigid));
@@ -495,6 +535,20 @@ void BulletPeer::step() {
   impl_->world->stepSimulation(settings_.dt, 0);
   ++steps_;
   time_ = steps_ * settings_.dt;
+}
+
+void BulletPeer::holdNode(int node, const Vec3& velocity) {
+  if (node < 0 || node >= numNodes()) throw std::invalid_argument("holdNode: node out of range");
+  btSoftBody::Node& n = impl_->body->m_nodes[node];
+  // m_im directly: btSoftBody::setMass would also set m_bUpdateRtCst, and the
+  // next step would reset every rest length from the current positions.
+  n.m_im = 0.0;
+  n.m_v = n.m_vn = btVector3(velocity.x(), velocity.y(), velocity.z());
+}
+
+void BulletPeer::releaseNode(int node) {
+  if (node < 0 || node >= numNodes()) throw std::invalid_argument("releaseNode: node out of range");
+  impl_->body->m_nodes[node].m_im = 1.0 / mass_[node];
 }
 
 int BulletPeer::numNodes() const { return impl_->body->m_nodes.size(); }

@@ -76,12 +76,30 @@ struct BulletBox {
   double friction = 0.0;  ///< Coulomb mu: the rigid body's friction (the soft body's kDF is 1)
 };
 
-/// Colliders for the peer. Empty boxes: no collisions of any kind (as before).
+/// Colliders for the peer. Empty boxes and no self-collision: no collisions
+/// of any kind (as before).
 struct BulletContact {
   std::vector<BulletBox> boxes;
   /// The soft body's collision margin (m): nodes are kept this far outside
-  /// the boxes (cloth_sim's contact.thickness).
+  /// the boxes (cloth_sim's contact.thickness). Replaced by self_thickness / 2
+  /// when self_collision is on (Bullet has one margin per soft body).
   double margin = 0.0;
+
+  /// Bullet 3.24's own cloth self-collision (the deformable world's VF_DD
+  /// with setSelfCollision(true), on the model's triangles as btSoftBody
+  /// faces): after the implicit solve, node-face pairs of non-adjacent faces
+  /// closer than 2 x margin at the step's start get a repulsion impulse, then
+  /// up to 5 rounds of node-face CCD re-apply those impulses. No edge-edge
+  /// test, no fail-safe (bench/README.md, "Self-collision").
+  bool self_collision = false;
+  /// cloth_sim's self_collision.thickness: Bullet's face-node distance is
+  /// 2 x margin, so the margin is set to half of it.
+  double self_thickness = 0.0;
+  /// Coulomb mu between layers. Bullet takes kDF x kDF for a self pair and
+  /// kDF x the rigid's friction for a box, so kDF = sqrt(self_friction) and
+  /// each box's friction is divided by it (a box with friction needs
+  /// self_friction > 0).
+  double self_friction = 0.0;
 };
 
 /// Work done inside Bullet, counted through the spring force's callbacks.
@@ -110,6 +128,14 @@ class BulletPeer {
   /// Advances by settings().dt (one btDeformableMultiBodyDynamicsWorld step).
   void step();
 
+  /// Scripted pins: a held node has zero inverse mass and moves at
+  /// `velocity` (Bullet integrates x += h v for it, as for every node, and
+  /// its projection keeps v); a released one gets its mass back and keeps
+  /// its velocity. cloth_sim's move_pin and release events, stepped so that
+  /// steps land on the events' times.
+  void holdNode(int node, const Vec3& velocity);
+  void releaseNode(int node);
+
   VecX positions() const;   ///< 3n
   VecX velocities() const;  ///< 3n
   double time() const { return time_; }
@@ -126,6 +152,7 @@ class BulletPeer {
   struct Impl;
   std::unique_ptr<Impl> impl_;
   BulletSettings settings_;
+  std::vector<double> mass_;  ///< the model's node masses (release restores them)
   double time_ = 0.0;
   long steps_ = 0;
 };

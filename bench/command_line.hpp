@@ -2,6 +2,7 @@
 // UsageError naming the flag, which main() prints with the usage text.
 #pragma once
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
@@ -32,6 +33,16 @@ inline long parseCount(const std::string& flag, const std::string& text, long mi
   if (value < min_value)
     throw UsageError{flag + ": must be >= " + std::to_string(min_value) + ", got " + text};
   return value;
+}
+
+/// Whole steps of dt to time t; throws UsageError naming `what` unless t is on a step.
+inline long stepsTo(double t, double dt, const std::string& what) {
+  const long n = std::lround(t / dt);
+  if (std::abs(n * dt - t) > 1e-9 * std::max(1.0, t)) {
+    throw UsageError{what + " at " + std::to_string(t) + " s is not on a step of " +
+                     std::to_string(dt) + " s"};
+  }
+  return n;
 }
 
 }  // namespace cloth_sim::bench
