@@ -22,6 +22,7 @@
 #include "bullet_peer.hpp"
 #include "bullet_scene.hpp"
 #include "command_line.hpp"
+#include "rest_diagonal.hpp"
 #include "cloth_sim/model.hpp"
 #include "cloth_sim/scene.hpp"
 #include "cloth_sim/simulation.hpp"
@@ -31,6 +32,7 @@ namespace {
 
 using cloth_sim::bench::parseCount;
 using cloth_sim::bench::parseNumber;
+using cloth_sim::bench::restDiagonal;
 using cloth_sim::bench::UsageError;
 using cloth_sim::Method;
 using cloth_sim::Model;
@@ -59,16 +61,6 @@ double cpuSeconds() {
   return ts.tv_sec + 1e-9 * ts.tv_nsec;
 }
 
-/// The cloth's diagonal at rest: the length the benchmark's errors are divided by.
-double restDiagonal(const Model& model) {
-  const VecX& x = model.rest_positions;
-  Vec3 lo = x.head<3>(), hi = x.head<3>();
-  for (int i = 1; i < model.numNodes(); ++i) {
-    lo = lo.cwiseMin(x.segment<3>(3 * i));
-    hi = hi.cwiseMax(x.segment<3>(3 * i));
-  }
-  return (hi - lo).norm();
-}
 
 /// RMS over nodes of |a_i - b_i|.
 double rmsNodeDistance(const VecX& a, const VecX& b) {

@@ -40,6 +40,7 @@
 #include "cloth_sim/scene.hpp"
 #include "cloth_sim/simulation.hpp"
 #include "command_line.hpp"
+#include "rest_diagonal.hpp"
 #include "self_measure.hpp"
 #ifdef CLOTH_SIM_HAVE_BULLET
 #include "bullet_scene.hpp"
@@ -53,6 +54,7 @@ using cloth_sim::SceneEvent;
 using cloth_sim::Vec3;
 using cloth_sim::VecX;
 using cloth_sim::bench::parseNumber;
+using cloth_sim::bench::restDiagonal;
 using cloth_sim::bench::stepsTo;
 using cloth_sim::bench::UsageError;
 
@@ -212,16 +214,6 @@ std::pair<double, double> trajectoryError(const std::vector<VecX>& a, const std:
   return {worst, last};
 }
 
-double diagonalOf(const Model& model) {
-  const VecX& x = model.rest_positions;
-  Vec3 lo = x.head<3>(), hi = x.head<3>();
-  for (int i = 1; i < model.numNodes(); ++i) {
-    lo = lo.cwiseMin(x.segment<3>(3 * i));
-    hi = hi.cwiseMax(x.segment<3>(3 * i));
-  }
-  return (hi - lo).norm();
-}
-
 Options parse(int argc, char** argv) {
   Options o;
   auto value = [&](int& i) -> std::string {
@@ -286,7 +278,7 @@ std::string number(double v) {
 int run(const Options& o) {
   const Scene base = sceneFor(o, true, o.ref_dt);
   const Model model = cloth_sim::buildModel(base);
-  const double diagonal = diagonalOf(model);
+  const double diagonal = restDiagonal(model);
   std::vector<VecX> reference;
   if (o.reference) {
     // The scene's method with CG and Newton solved tight (tolerance is CG's).

@@ -44,6 +44,7 @@
 #include "cloth_sim/simulation.hpp"
 #include "cloth_sim/stepper.hpp"
 #include "command_line.hpp"
+#include "rest_diagonal.hpp"
 #ifdef CLOTH_SIM_HAVE_BULLET
 #include "bullet_peer.hpp"
 #endif
@@ -52,6 +53,7 @@ namespace {
 
 using cloth_sim::bench::parseCount;
 using cloth_sim::bench::parseNumber;
+using cloth_sim::bench::restDiagonal;
 using cloth_sim::bench::UsageError;
 using cloth_sim::Method;
 using cloth_sim::Model;
@@ -205,16 +207,6 @@ double median(std::vector<double> v) {
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
-/// The cloth's diagonal at rest: errors are divided by it.
-double restDiagonal(const Model& model) {
-  const VecX& x = model.rest_positions;
-  Vec3 lo = x.head<3>(), hi = x.head<3>();
-  for (int i = 1; i < model.numNodes(); ++i) {
-    lo = lo.cwiseMin(x.segment<3>(3 * i));
-    hi = hi.cwiseMax(x.segment<3>(3 * i));
-  }
-  return (hi - lo).norm();
-}
 
 /// Sum over nodes of |a_i - b_i|^2.
 double squaredNodeDistance(const VecX& a, const VecX& b) { return (a - b).squaredNorm(); }
