@@ -37,7 +37,7 @@ class PaddedTerms {
   static void sumDifferences(const double* m, const double* x_split, const PaddedTerms& a,
                              const PaddedTerms* b, double* y_split);
   /// y += a's and b's differences (b may be null).
-  static void addDifferences(const PaddedTerms& a, const PaddedTerms* b, double* y_split);
+  static void addPairDifferences(const PaddedTerms& a, const PaddedTerms* b, double* y_split);
 
  private:
   std::vector<double> buffer_;

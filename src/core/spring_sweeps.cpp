@@ -222,7 +222,7 @@ void PaddedTerms::sumDifferences(const double* m, const double* x_split, const P
                    b ? bb.offset_ : 0, bb.padded_, y_split);
 }
 
-void PaddedTerms::addDifferences(const PaddedTerms& a, const PaddedTerms* b, double* y_split) {
+void PaddedTerms::addPairDifferences(const PaddedTerms& a, const PaddedTerms* b, double* y_split) {
   const PaddedTerms& bb = b ? *b : a;
   addTwoDirections(a.n_, a.data_, a.offset_, a.padded_, bb.data_, b ? bb.offset_ : 0,
                    bb.padded_, y_split);

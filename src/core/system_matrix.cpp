@@ -173,7 +173,7 @@ void SystemMatrix::multiplySplit(const double* xs, double* ys) const {
     if (k == 0) {
       sweeps::PaddedTerms::sumDifferences(node_scale_.data(), xs, direction_terms_[k], second, ys);
     } else {
-      sweeps::PaddedTerms::addDifferences(direction_terms_[k], second, ys);
+      sweeps::PaddedTerms::addPairDifferences(direction_terms_[k], second, ys);
     }
   }
   for (const auto& [node, block] : node_blocks_) {
