@@ -47,6 +47,7 @@
 #include "rest_diagonal.hpp"
 #ifdef CLOTH_SIM_HAVE_BULLET
 #include "bullet_peer.hpp"
+#include "bullet_scene.hpp"
 #endif
 
 namespace {
@@ -457,31 +458,6 @@ cloth_sim::bench::BulletSettings bulletSettings(const Setting& s) {
 }
 #endif
 
-#ifdef CLOTH_SIM_HAVE_BULLET
-/// The scene's colliders for the peer: boxes only (Bullet's static
-/// btBoxShape), friction mu on the rigid, the thickness as the soft body's
-/// collision margin.
-cloth_sim::bench::BulletContact bulletContact(const Scene& scene) {
-  cloth_sim::bench::BulletContact contact;
-  for (size_t k = 0; k < scene.colliders.size(); ++k) {
-    const cloth_sim::ColliderParams& p = scene.colliders[k];
-    if (p.type != cloth_sim::ColliderParams::Type::Box) {
-      throw std::invalid_argument("colliders[" + std::to_string(k) +
-                                  "]: the Bullet peer takes boxes only, got " +
-                                  cloth_sim::toString(p.type));
-    }
-    cloth_sim::bench::BulletBox box;
-    box.center = p.center;
-    box.half_extents = p.half_extents;
-    box.rotation = cloth_sim::rotationFromRpy(p.rpy);
-    box.friction = p.friction.value_or(scene.contact.friction);
-    contact.boxes.push_back(box);
-  }
-  contact.margin = scene.contact.thickness;
-  return contact;
-}
-
-#endif
 
 double totalEnergy(const Model& model, const VecX& x, const VecX& v) {
   return cloth_sim::measureEnergy(model, x, v).total();
@@ -499,7 +475,8 @@ Run runBullet(const Scene& base, const Setting& setting, const RunPlan& plan) {
   // Bullet's exact Hessian.
   settings.project_compression = !base.colliders.empty();
   cloth_sim::bench::BulletPeer peer(model, x_init, base.pins, settings,
-                                    initialVelocities(base), bulletContact(base));
+                                    initialVelocities(base),
+                                    cloth_sim::bench::bulletContact(base, false));
   const int sample_count = static_cast<int>(std::lround(plan.duration / plan.sample));
   Sampler sampler(plan.sample, sample_count);
   VecX x0 = x_init, v0 = peer.velocities(), x1, v1;

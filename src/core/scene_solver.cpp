@@ -17,8 +17,9 @@ void readSolver(const YAML::Node& node, Scene::Solver* solver) {
                   "newton_max_iterations", "max_halvings", "recovery", "error_tolerance",
                   "dt_min", "dt_max"});
   // No method named: the fast path (automaticSolver), under what is named.
-  if (!f.has("method")) *solver = automaticSolver();
-  if (f.has("method")) {
+  if (!f.has("method")) {
+    *solver = automaticSolver();
+  } else {
     const std::string name = readName(f.get("method"), f.path("method"));
     if (!parseMethod(name, &solver->method)) {
       fail(f.path("method"), "unknown method '" + name +
