@@ -91,6 +91,16 @@ class ContactSet {
   Vec3 prescribed(size_t k, const VecX& ax, double bh) const;
   /// v1 <- S v1 + w on every contact node.
   void prescribe(const VecX& ax, double bh, VecX& v1) const;
+  /// After an accepted step of length h, on the nodes that landed in it:
+  /// the constrained part of the node's state (its normals; all of it when
+  /// sticking) moves with its surfaces, at the end of the step and one step
+  /// back, the history BDF2 extrapolates from. An inelastic contact ends at
+  /// the surface's velocity; the solve's v1 = (x1 - ax) / bh is that only
+  /// where the history is smooth. Across the impact BDF2's ax lies behind
+  /// the plane, so v1 left it at half the impact speed and the next step's
+  /// av pulled the node off again (a bounce, caught by the energy check or
+  /// not at all). Contacts kept from the step before are smooth already.
+  void alignWithSurfaces(double h, const VecX& x1, VecX& v1, VecX& x_prev, VecX& v_prev) const;
   /// The same as a velocity change from v0: c = w - (I - S) v0 on the
   /// contact nodes (other entries untouched). Returns whether any is nonzero.
   bool prescribeChange(const VecX& ax, double bh, const VecX& v0, VecX& c) const;
@@ -160,6 +170,7 @@ class ContactSet {
     double slip_speed = 0.0;    ///< |slip| at the last check (0: not known)
     double friction = 0.0;      ///< friction force magnitude used in the solve (N)
     bool held = false;          ///< released once this step and back: kept
+    bool fresh = true;          ///< not in contact at the step's start (it landed)
     int flips = 0;              ///< stick/slip switches this step
     // derived by refresh():
     Mat3 tangent = Mat3::Identity();  ///< projector on the tangent space

@@ -148,6 +148,7 @@ void ContactSet::begin(const CollidersOverStep& colliders, const ConstraintFilte
     }
     c.num_planes = planes;
     c.held = false;
+    c.fresh = false;
     c.flips = 0;
     if (planes == 0) continue;
     if (!refresh(c, colliders)) {
@@ -212,6 +213,34 @@ void ContactSet::prescribe(const VecX& ax, double bh, VecX& v1) const {
     const Vec3 w = prescribed(k, ax, bh);
     Vec3 v = v1.segment<3>(3 * c.node);
     v1.segment<3>(3 * c.node) = (c.sticking ? Vec3::Zero() : Vec3(c.tangent * v)) + w;
+  }
+}
+
+void ContactSet::alignWithSurfaces(double h, const VecX& x1, VecX& v1, VecX& x_prev,
+                                   VecX& v_prev) const {
+  for (const NodeContact& c : nodes_) {
+    if (!c.fresh) continue;  // aligned when it landed; its history is smooth since
+    // The surfaces' normal speeds t_k = n_k . v_s,k, combined as prescribed()
+    // combines the planes' offsets; a sticking node's tangent speed too.
+    const Plane& p = c.plane[0];
+    const double t0 = p.normal.dot(p.surface_velocity);
+    Vec3 u;
+    if (c.num_planes == 1) {
+      u = t0 * p.normal;
+    } else {
+      const Plane& q = c.plane[1];
+      const double t1 = q.normal.dot(q.surface_velocity);
+      const double g = p.normal.dot(q.normal);
+      const double det = 1.0 - g * g;
+      u = ((t0 - g * t1) / det) * p.normal + ((t1 - g * t0) / det) * q.normal;
+    }
+    if (c.sticking) u += c.tangent * c.surface_velocity;
+    const Mat3 held = c.sticking ? Mat3::Identity() : Mat3(Mat3::Identity() - c.tangent);
+    const int i = 3 * c.node;
+    const Vec3 x = x1.segment<3>(i);
+    v1.segment<3>(i) += held * (u - v1.segment<3>(i));
+    v_prev.segment<3>(i) += held * (u - v_prev.segment<3>(i));
+    x_prev.segment<3>(i) += held * (x - h * u - x_prev.segment<3>(i));
   }
 }
 
