@@ -182,6 +182,9 @@ class ContactSet {
   /// the end pose, the surface velocity from start to end).
   void setPlane(Plane& p, int collider, const SurfacePoint& local,
                 const CollidersOverStep& colliders, double h) const;
+  /// The velocity whose speed along each of c's plane normals is t0 (t1):
+  /// the normals' dual basis, for two planes at an angle.
+  static Vec3 normalVelocity(const NodeContact& c, double t0, double t1);
   /// Projector and friction coefficient from the planes. False: no room.
   bool refresh(NodeContact& c, const CollidersOverStep& colliders);
   /// Adds collider k's plane to node contact c (or replaces a parallel one).

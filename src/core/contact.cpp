@@ -188,21 +188,22 @@ void ContactSet::constrain(ConstraintFilter& filter) const {
   }
 }
 
+Vec3 ContactSet::normalVelocity(const NodeContact& c, double t0, double t1) {
+  const Plane& p = c.plane[0];
+  if (c.num_planes == 1) return t0 * p.normal;
+  const Plane& q = c.plane[1];
+  const double g = p.normal.dot(q.normal);
+  const double det = 1.0 - g * g;
+  return ((t0 - g * t1) / det) * p.normal + ((t1 - g * t0) / det) * q.normal;
+}
+
 Vec3 ContactSet::prescribed(size_t k, const VecX& ax, double bh) const {
   const NodeContact& c = nodes_[k];
   const Vec3 a = ax.segment<3>(3 * c.node);
-  const Plane& p = c.plane[0];
-  const double t0 = (p.offset - p.normal.dot(a)) / bh;  // normal speed to reach the plane
-  Vec3 w;
-  if (c.num_planes == 1) {
-    w = t0 * p.normal;
-  } else {
-    const Plane& q = c.plane[1];
-    const double t1 = (q.offset - q.normal.dot(a)) / bh;
-    const double g = p.normal.dot(q.normal);
-    const double det = 1.0 - g * g;
-    w = ((t0 - g * t1) / det) * p.normal + ((t1 - g * t0) / det) * q.normal;
-  }
+  // Normal speeds that reach each plane.
+  const double t0 = (c.plane[0].offset - c.plane[0].normal.dot(a)) / bh;
+  const double t1 = c.num_planes > 1 ? (c.plane[1].offset - c.plane[1].normal.dot(a)) / bh : 0.0;
+  Vec3 w = normalVelocity(c, t0, t1);
   if (c.sticking) w += c.tangent * c.surface_velocity;
   return w;
 }
@@ -220,20 +221,11 @@ void ContactSet::alignWithSurfaces(double h, const VecX& x1, VecX& v1, VecX& x_p
                                    VecX& v_prev) const {
   for (const NodeContact& c : nodes_) {
     if (!c.fresh) continue;  // aligned when it landed; its history is smooth since
-    // The surfaces' normal speeds t_k = n_k . v_s,k, combined as prescribed()
-    // combines the planes' offsets; a sticking node's tangent speed too.
+    // The surfaces' own normal speeds.
     const Plane& p = c.plane[0];
-    const double t0 = p.normal.dot(p.surface_velocity);
-    Vec3 u;
-    if (c.num_planes == 1) {
-      u = t0 * p.normal;
-    } else {
-      const Plane& q = c.plane[1];
-      const double t1 = q.normal.dot(q.surface_velocity);
-      const double g = p.normal.dot(q.normal);
-      const double det = 1.0 - g * g;
-      u = ((t0 - g * t1) / det) * p.normal + ((t1 - g * t0) / det) * q.normal;
-    }
+    const Plane& q = c.plane[1];
+    Vec3 u = normalVelocity(c, p.normal.dot(p.surface_velocity),
+                            c.num_planes > 1 ? q.normal.dot(q.surface_velocity) : 0.0);
     if (c.sticking) u += c.tangent * c.surface_velocity;
     const Mat3 held = c.sticking ? Mat3::Identity() : Mat3(Mat3::Identity() - c.tangent);
     const int i = 3 * c.node;
