@@ -91,8 +91,8 @@ class Stepper {
   /// as the filter's projector already does (ConstraintFilter::project).
   bool yieldsToContact(size_t k) const;
   /// Puts each pinned node exactly on its target (its component along the
-  /// pin's direction, for a directional pin).
-  void placePins(VecX& x) const;
+  /// pin's direction, for a directional pin); returns whether any moved.
+  bool placePins(VecX& x) const;
   /// BDF2 from the state one step back; without one (first step, or h
   /// changed) the trapezoidal rule, so the start is second order too (a
   /// backward-Euler start adds an O(h^2) error that dominates settling scenes).

@@ -321,6 +321,7 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
     if (contact_on_) contact_.addFrictionJacobian(A_, bh);
   };
   assemble();
+  bool forces_at_v1 = true;  // f_ is f(x, v1): the reaction below reuses it
   const double g0 = residualFromForces(model, bh, av_, v1, f_, g_);
   double g_norm = g0;
   stats.assembly_s += secondsSince(t0);
@@ -337,6 +338,7 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
     if (it > 0) {  // the first iterate was assembled above
       t0 = Clock::now();
       assemble();
+      forces_at_v1 = true;
       stats.assembly_s += secondsSince(t0);
     }
     t0 = Clock::now();
@@ -401,7 +403,8 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
         if (std::isnan(phi)) phi = incrementalPotential(model, bh, av_, v1, x);
         accept = incrementalPotential(model, bh, av_, v_trial_, x_trial_) <= phi + 1e-4 * alpha * slope;
       }
-      if (accept || trial < best_norm) {  // keep the trial's state, not just its alpha
+      forces_at_v1 = accept || trial < best_norm;  // f_ is the trial's
+      if (forces_at_v1) {  // keep the trial's state, not just its alpha
         best_norm = trial;
         v_best_.swap(v_trial_);
         x_best_.swap(x_trial_);
@@ -425,7 +428,7 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
   // plus the line search): no tolerance was asked of it. With more, the
   // tolerance holds and missing it at the cap is reported (and acted on).
   stats.newton_converged = g_norm <= target || max_iterations == 1 || decrement_reached;
-  placePins(x);
+  if (placePins(x)) forces_at_v1 = false;
   if (!(g_norm <= g0) && g0 > 0.0) {
     // Far from the solution the line search may take ||g|| up while it
     // takes the incremental potential down (a stiff cloth's first
@@ -439,7 +442,7 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
     }
   }
   if (contact_on_) {  // reaction = M (v1 - av) - b h f(x1, v1), friction left out
-    computeForces(model, x, v1, f_, dampingAxes());
+    if (!forces_at_v1) computeForces(model, x, v1, f_, dampingAxes());
     reaction_.resize(v1.size());
     for (int i = 0; i < model.numNodes(); ++i) {
       reaction_.segment<3>(3 * i) = model.mass[i] * (v1.segment<3>(3 * i) - av_.segment<3>(3 * i)) -
@@ -513,14 +516,18 @@ bool Stepper::yieldsToContact(size_t k) const {
   return contact_on_ && contact_.holds(pins_->nodes[k]) && pins_->direction(k).squaredNorm() > 0.0;
 }
 
-void Stepper::placePins(VecX& x) const {
+bool Stepper::placePins(VecX& x) const {
+  bool moved = false;
   for (size_t k = 0; k < pins_->nodes.size(); ++k) {  // exactly on target
     if (yieldsToContact(k)) continue;
     const int p = pins_->nodes[k];
     const Vec3 n = pins_->direction(k);
     const Vec3 gap = pins_->targets[k] - x.segment<3>(3 * p);
-    x.segment<3>(3 * p) += n.squaredNorm() > 0.0 ? Vec3(n * n.dot(gap)) : gap;
+    const Vec3 shift = n.squaredNorm() > 0.0 ? Vec3(n * n.dot(gap)) : gap;
+    moved = moved || shift.squaredNorm() > 0.0;
+    x.segment<3>(3 * p) += shift;
   }
+  return moved;
 }
 
 }  // namespace cloth_sim
