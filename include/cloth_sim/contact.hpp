@@ -100,7 +100,8 @@ class ContactSet {
   /// the plane, so v1 left it at half the impact speed and the next step's
   /// av pulled the node off again (a bounce, caught by the energy check or
   /// not at all). Contacts kept from the step before are smooth already.
-  void alignWithSurfaces(double h, const VecX& x1, VecX& v1, VecX& x_prev, VecX& v_prev) const;
+  /// Returns whether any node landed (else nothing changed).
+  bool alignWithSurfaces(double h, const VecX& x1, VecX& v1, VecX& x_prev, VecX& v_prev) const;
   /// The same as a velocity change from v0: c = w - (I - S) v0 on the
   /// contact nodes (other entries untouched). Returns whether any is nonzero.
   bool prescribeChange(const VecX& ax, double bh, const VecX& v0, VecX& c) const;

@@ -217,10 +217,12 @@ void ContactSet::prescribe(const VecX& ax, double bh, VecX& v1) const {
   }
 }
 
-void ContactSet::alignWithSurfaces(double h, const VecX& x1, VecX& v1, VecX& x_prev,
+bool ContactSet::alignWithSurfaces(double h, const VecX& x1, VecX& v1, VecX& x_prev,
                                    VecX& v_prev) const {
+  bool landed = false;
   for (const NodeContact& c : nodes_) {
     if (!c.fresh) continue;  // aligned when it landed; its history is smooth since
+    landed = true;
     // The surfaces' own normal speeds.
     const Plane& p = c.plane[0];
     const Plane& q = c.plane[1];
@@ -234,6 +236,7 @@ void ContactSet::alignWithSurfaces(double h, const VecX& x1, VecX& v1, VecX& x_p
     v_prev.segment<3>(i) += held * (u - v_prev.segment<3>(i));
     x_prev.segment<3>(i) += held * (x - h * u - x_prev.segment<3>(i));
   }
+  return landed;
 }
 
 bool ContactSet::prescribeChange(const VecX& ax, double bh, const VecX& v0, VecX& c) const {

@@ -258,10 +258,10 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
   measures_ = after;
   std::swap(x_prev_, x_save_);  // x_prev_ = state before this step
   std::swap(v_prev_, v_save_);
-  if (scene_.solver.method == Method::Bdf2 && !stepper_.contacts().empty()) {
-    // BDF2 extrapolates from this state and the one before: contact nodes
-    // restart there at their surfaces (ContactSet::alignWithSurfaces).
-    stepper_.contacts().alignWithSurfaces(h, x_, v_, x_prev_, v_prev_);
+  // BDF2 extrapolates from this state and the one before: nodes that landed
+  // restart there at their surfaces (ContactSet::alignWithSurfaces).
+  if (scene_.solver.method == Method::Bdf2 &&
+      stepper_.contacts().alignWithSurfaces(h, x_, v_, x_prev_, v_prev_)) {
     measures_.kinetic = cloth_sim::kineticEnergy(model_, v_);
   }
   h_prev_ = h;
