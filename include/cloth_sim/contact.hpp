@@ -85,6 +85,10 @@ class ContactSet {
              const VecX& v0, const Vec3& gravity, double h);
   /// Projects the contact nodes in the filter (after the pins are set).
   void constrain(ConstraintFilter& filter) const;
+  /// Projects out only the contact normals, sticking nodes too (their
+  /// tangent kept): the directions in which a contact node's end position is
+  /// its surface's, whenever it landed (the error estimate's filter).
+  void constrainNormals(ConstraintFilter& filter) const;
   /// The constrained part of node k's end velocity: v1 = S v1 + w, so that
   /// x1 = ax + bh v1 is on every contact plane (and moves with the surface
   /// when sticking).

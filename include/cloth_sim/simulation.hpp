@@ -232,7 +232,7 @@ class Simulation {
   bool refine_next_ = false;  ///< the last refined step took > 1 Newton iteration
   Stepper stepper_;
   StepSizeControl step_control_;  ///< with solver.error_tolerance
-  std::vector<char> free_nodes_;  ///< reused by the error estimate
+  ConstraintFilter departure_filter_;  ///< reused by the error estimate
   PinnedEnds pin_ends_;  ///< reused per step
   PinnedEnds pin_ends_self_;  ///< pins plus the nodes the self-collision filter moved
   /// Per node, in resolveSelfCollision: held, where, and along which unit

@@ -14,14 +14,20 @@
 
 #include <vector>
 
+#include "cloth_sim/constraint_filter.hpp"
 #include "cloth_sim/types.hpp"
 
 namespace cloth_sim {
 
-/// RMS over the nodes with free[i] of |x1 - x0 - h (v0 + v1) / 2|_i (m).
-/// free: one flag per node (pinned nodes follow their targets: no error).
+/// RMS over the nodes the filter does not eliminate of |S_i (x1 - x0 -
+/// h (v0 + v1) / 2)_i| (m), S_i the node's filter at the end of the step.
+/// Pinned nodes follow their targets and a contact node ends on its surface
+/// along its normals (filtered out by the caller: ContactSet::
+/// constrainNormals): no error of the step there. The trapezoidal rule has
+/// one across a landing's velocity jump (h |v_impact| / 2), so counting it
+/// shrank every landing step to dt_min.
 double trapezoidDeparture(const VecX& x0, const VecX& v0, const VecX& x1, const VecX& v1,
-                          double h, const std::vector<char>& free);
+                          double h, const ConstraintFilter& filter);
 
 /// The factor that turns the departure into a BDF2 step's local error, for
 /// the step ratio w = h / h_prev (> 0).

@@ -188,6 +188,10 @@ void ContactSet::constrain(ConstraintFilter& filter) const {
   }
 }
 
+void ContactSet::constrainNormals(ConstraintFilter& filter) const {
+  for (const NodeContact& c : nodes_) filter.project(c.node, c.tangent);
+}
+
 Vec3 ContactSet::normalVelocity(const NodeContact& c, double t0, double t1) {
   const Plane& p = c.plane[0];
   if (c.num_planes == 1) return t0 * p.normal;

@@ -91,9 +91,12 @@ StepStats Simulation::stepToward(double t_limit) {
                               part.order_reduced == 0 && h_prev > 0.0;
     const bool trapezoidal_start = scene_.solver.method == Method::Bdf2 && !bdf2_formula &&
                                    part.order_reduced == 0;
-    free_nodes_.assign(model_.numNodes(), 1);
-    for (const auto& entry : pins_) free_nodes_[entry.first] = 0;
-    const double departure = trapezoidDeparture(checkpoint_.x, checkpoint_.v, x_, v_, h, free_nodes_);
+    // Pins and the contact normals the step ended with: no error there.
+    departure_filter_.reset(model_.numNodes());
+    for (const auto& entry : pins_) departure_filter_.eliminate(entry.first);
+    stepper_.contacts().constrainNormals(departure_filter_);
+    const double departure =
+        trapezoidDeparture(checkpoint_.x, checkpoint_.v, x_, v_, h, departure_filter_);
     bool accepted = true;
     if (!trapezoidal_start) {  // the trapezoidal rule departs from itself by round-off only
       const double factor = bdf2_formula ? bdf2ErrorFactor(h / h_prev) : 1.0;

@@ -20,13 +20,14 @@ constexpr double kHysteresis = 1.2;
 }  // namespace
 
 double trapezoidDeparture(const VecX& x0, const VecX& v0, const VecX& x1, const VecX& v1,
-                          double h, const std::vector<char>& free) {
+                          double h, const ConstraintFilter& filter) {
   double sum = 0.0;
   int count = 0;
-  for (size_t i = 0; i < free.size(); ++i) {
-    if (!free[i]) continue;
-    const Vec3 d = x1.segment<3>(3 * i) - x0.segment<3>(3 * i) -
-                   (0.5 * h) * (v0.segment<3>(3 * i) + v1.segment<3>(3 * i));
+  for (int i = 0; i < filter.numNodes(); ++i) {
+    if (filter.isEliminated(i)) continue;
+    Vec3 d = x1.segment<3>(3 * i) - x0.segment<3>(3 * i) -
+             (0.5 * h) * (v0.segment<3>(3 * i) + v1.segment<3>(3 * i));
+    if (filter.isProjected(i)) d = filter.projector(i) * d;
     sum += d.squaredNorm();
     ++count;
   }

@@ -82,6 +82,49 @@ TEST(StepSizeControl, Bdf2FreeFallIsExactAndGrowsTheStepToDtMax) {
   }
 }
 
+// A flat cloth falls onto a floor under error control. On landing each node
+// ends on the floor (its normal position exact) and at rest, so the step has
+// no error to see: the estimate leaves contact normals out. Counted, the
+// trapezoidal rule's h |v| / 2 across the impact held the step at dt_min.
+TEST(StepSizeControl, LandingOnAFloorKeepsTheStepSize) {
+  Scene s = bareScene(5, 5);
+  s.cloth.width = s.cloth.length = 0.4;
+  s.cloth.origin = Vec3(0.0, 0.0, 0.1);
+  enable(s, SpringType::Stretch, 1000.0, 1.0);
+  enable(s, SpringType::Shear, 100.0, 0.5);
+  s.gravity = Vec3(0.0, 0.0, -9.81);
+  ColliderParams floor;
+  floor.type = ColliderParams::Type::Plane;
+  floor.point = Vec3::Zero();
+  floor.normal = Vec3::UnitZ();
+  s.colliders = {floor};
+  s.contact.thickness = 0.002;
+  s.solver.method = Method::Bdf2;
+  s.solver.dt = 0.001;
+  s.solver.error_tolerance = 1e-4;
+  s.solver.dt_max = 0.05;
+  Simulation sim(s);
+  double h_min = 1.0;
+  int steps = 0, rejected = 0;
+  while (sim.time() < 1.0 - 1e-12) {
+    const double t0 = sim.time();
+    const StepStats st = sim.stepToward(1.0);
+    ASSERT_TRUE(st.ok) << st.failure;
+    rejected += st.error_rejected;
+    ++steps;
+    // The last two steps may halve what is left of the second.
+    if (sim.time() < 1.0 - 0.1) h_min = std::min(h_min, sim.time() - t0);
+  }
+  EXPECT_GE(h_min, 0.001);
+  EXPECT_EQ(rejected, 0);
+  EXPECT_LE(steps, 40);
+  EXPECT_EQ(static_cast<int>(sim.contactNodes().size()), sim.numNodes());
+  for (int i = 0; i < sim.numNodes(); ++i) {
+    ASSERT_NEAR(sim.position(i).z(), 0.002, 1e-12) << "node " << i;
+    ASSERT_LE(sim.velocities().segment<3>(3 * i).norm(), 1e-12) << "node " << i;
+  }
+}
+
 // A swinging cloth: the global error against a converged reference follows
 // the tolerance (a tenth of the tolerance: ~ a tenth of the error), and the
 // cost does too.
