@@ -187,14 +187,17 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
     colliders_move = colliders_move || drift * c.velocity.squaredNorm() > 0.0;
   }
 
-  if (refining_ && !pins_move && collider_step_.empty() && !self_collision_.enabled()) {
+  if (refining_ && !pins_move && !colliders_move) {
     // A refined step is held to the energy check, not to a Newton tolerance:
     // Newton stops at the first iterate that passes it once its decrement is
     // below kRefineAcceptDecrement of the energy scale (docs/design.md,
     // "Accepting a step"). Not when pins move (their work is read from the
     // reaction at the end of the step, only as good as Newton's answer:
-    // compression at stretch 1e7, dt 0.1, rose 1e-6 beyond it) nor with
-    // colliders (their work comes from the contact passes).
+    // compression at stretch 1e7, dt 0.1, rose 1e-6 beyond it) nor when
+    // colliders move (their work comes from the contact passes). Static
+    // colliders do none, and self-collision's re-solves are checked after:
+    // the stiffened cloth on a table (contact hard case c4) rejected 53
+    // attempts where 154 when these ran Newton to its tolerance.
     stepper_.setEnergyStop(
         [this, before](const VecX& x1, const VecX& v1) {
           const double gain = measureEnergy(model_, x1, v1).total() - before.total();
