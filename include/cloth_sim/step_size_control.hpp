@@ -12,8 +12,6 @@
 // docs/design.md, "Error-controlled stepping").
 #pragma once
 
-#include <vector>
-
 #include "cloth_sim/constraint_filter.hpp"
 #include "cloth_sim/types.hpp"
 

@@ -1,6 +1,7 @@
 // Small scenes built in code for the core tests.
 #pragma once
 
+#include <optional>
 #include <random>
 
 #include "cloth_sim/model.hpp"
@@ -18,6 +19,18 @@ inline Scene bareScene(int rows, int cols) {
   s.solver.max_iterations = 1000;
   s.solver.newton_tolerance = 1e-12;
   return s;
+}
+
+/// The plane z = 0, normal +z, named "floor"; friction mu (absent: the
+/// scene's contact default).
+inline ColliderParams floorPlane(std::optional<double> mu = std::nullopt) {
+  ColliderParams p;
+  p.name = "floor";
+  p.type = ColliderParams::Type::Plane;
+  p.point = Vec3::Zero();
+  p.normal = Vec3::UnitZ();
+  p.friction = mu;
+  return p;
 }
 
 inline void enable(Scene& s, SpringType type, double stiffness, double damping) {

@@ -13,19 +13,10 @@ namespace {
 
 using test::bareScene;
 using test::enable;
+using test::floorPlane;
 
 constexpr double kThickness = 0.002;
 constexpr double kG = 9.81;
-
-ColliderParams floorPlane(std::optional<double> mu = std::nullopt) {
-  ColliderParams p;
-  p.name = "floor";
-  p.type = ColliderParams::Type::Plane;
-  p.point = Vec3::Zero();
-  p.normal = Vec3::UnitZ();
-  p.friction = mu;
-  return p;
-}
 
 /// Particles (no springs) lying on z = 0 at the contact thickness.
 Scene particlesOnFloor(double mu, Method method) {

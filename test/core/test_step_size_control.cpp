@@ -93,11 +93,7 @@ TEST(StepSizeControl, LandingOnAFloorKeepsTheStepSize) {
   enable(s, SpringType::Stretch, 1000.0, 1.0);
   enable(s, SpringType::Shear, 100.0, 0.5);
   s.gravity = Vec3(0.0, 0.0, -9.81);
-  ColliderParams floor;
-  floor.type = ColliderParams::Type::Plane;
-  floor.point = Vec3::Zero();
-  floor.normal = Vec3::UnitZ();
-  s.colliders = {floor};
+  s.colliders = {test::floorPlane()};
   s.contact.thickness = 0.002;
   s.solver.method = Method::Bdf2;
   s.solver.dt = 0.001;
