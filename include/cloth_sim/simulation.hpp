@@ -239,7 +239,7 @@ class Simulation {
   /// direction (the filter's first displacement of it).
   std::vector<char> self_held_;
   std::vector<Vec3> self_target_, self_direction_;
-  std::vector<char> self_pinned_, self_heavy_;  ///< per node, reused: pinned; held by a collider
+  std::vector<char> self_pinned_;  ///< per node, reused: pinned
   /// Solves a step may take with self-collision: the first and re-solves
   /// while the filter still moves nodes (resolveSelfCollision).
   static constexpr int kSelfSolves = 4;
