@@ -130,7 +130,13 @@ Preconditioner strongerPreconditioner(const Model& model);
 /// 1e-4); the hang cloth at 12 x 12 0.15 / 0.11, 32 x 32 2.2 / 0.88 and
 /// 48 x 48 7.2 / 2.1 (bdf2 dt 1/160, CG 1e-2): block Jacobi's iterations grow
 /// with the grid (17 to 80), the V-cycle's barely (2.5 to 4.3).
-Preconditioner cheapPreconditioner(const Model& model);
+/// With colliders (`contact`) block Jacobi on every grid: the contact
+/// constraints cost the V-cycle its reach (drop32 31 CG iterations a step
+/// where 2-4 free) and the hierarchy is rebuilt as contacts change.
+/// Measured (2026-11-26, ms a step, block Jacobi / multigrid): drop32 2.15 /
+/// 3.68, drop64 17.0 / 28.9, hang32_floor 0.29 / 0.37, the fold demo with
+/// self-collision off 1.4 / 5.5.
+Preconditioner cheapPreconditioner(const Model& model, bool contact = false);
 /// Grids from this many nodes get multigrid as the cheap preconditioner.
 constexpr int kAutoMultigridNodes = 144;
 /// Above this kappa `auto` does not try the cheap guess at all (the demo at
@@ -169,8 +175,10 @@ int autoTrialIterations(const Model& model, Preconditioner cheap);
 /// factor and its marker rate fell to 53 of 60 Hz.
 class AutoPreconditioner {
  public:
-  /// This attempt's preconditioner (`requested` as it is unless Auto).
-  Preconditioner choose(Preconditioner requested, const Model& model, double h);
+  /// This attempt's preconditioner (`requested` as it is unless Auto);
+  /// `contact`: the scene has colliders (cheapPreconditioner).
+  Preconditioner choose(Preconditioner requested, const Model& model, double h,
+                        bool contact = false);
   /// A block-Jacobi solve of this attempt did not converge in time: returns
   /// the stronger preconditioner.
   Preconditioner escalate(const Model& model);

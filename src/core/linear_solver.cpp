@@ -169,10 +169,10 @@ Preconditioner strongerPreconditioner(const Model& model) {
                                                 : Preconditioner::Multigrid;
 }
 
-Preconditioner cheapPreconditioner(const Model& model) {
+Preconditioner cheapPreconditioner(const Model& model, bool contact) {
   const bool grid = model.rows > 1 && model.cols > 1 && model.rows * model.cols == model.numNodes();
-  return grid && model.numNodes() >= kAutoMultigridNodes ? Preconditioner::Multigrid
-                                                         : Preconditioner::BlockJacobi;
+  return grid && !contact && model.numNodes() >= kAutoMultigridNodes ? Preconditioner::Multigrid
+                                                                     : Preconditioner::BlockJacobi;
 }
 
 int autoTrialIterations(const Model& model, Preconditioner cheap) {
@@ -184,7 +184,7 @@ int autoTrialIterations(const Model& model, Preconditioner cheap) {
 }
 
 Preconditioner AutoPreconditioner::choose(Preconditioner requested, const Model& model,
-                                          double h) {
+                                          double h, bool contact) {
   if (requested != Preconditioner::Auto) return requested;
   if (guessed_) streak_ = escalated_ ? streak_ + 1 : 0;  // the last attempt's verdict
   if (streak_ >= kAutoEscalations) {
@@ -197,7 +197,8 @@ Preconditioner AutoPreconditioner::choose(Preconditioner requested, const Model&
   kappa_ = autoStiffness(model, h);
   escalated_ = false;
   const Preconditioner stronger = strongerPreconditioner(model);
-  const Preconditioner chosen = kappa_ <= jacobi_limit_ ? cheapPreconditioner(model) : stronger;
+  const Preconditioner chosen =
+      kappa_ <= jacobi_limit_ ? cheapPreconditioner(model, contact) : stronger;
   guessed_ = chosen != stronger;  // a guess the iterations judge
   return chosen;
 }

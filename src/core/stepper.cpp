@@ -67,7 +67,7 @@ StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
                         const CollidersOverStep& colliders) {
   const auto start = Clock::now();
   setPins(model, pins);
-  preconditioner_ = auto_.choose(settings_.preconditioner, model, h);
+  preconditioner_ = auto_.choose(settings_.preconditioner, model, h, !colliders.empty());
   const Method method = as.value_or(settings_.method);
   contact_on_ = !colliders.empty();
   StepStats stats;

@@ -36,8 +36,12 @@ TEST(AutoPreconditioner, PicksByStiffnessAndSize) {
   EXPECT_EQ(a.choose(Preconditioner::Auto, square, 1.0 / 120.0), Preconditioner::Multigrid);
   const Model chain = buildModel(parseScene("cloth: {rows: 200, cols: 1}\n", {}));
   EXPECT_EQ(a.choose(Preconditioner::Auto, chain, 1.0 / 120.0), Preconditioner::BlockJacobi);
+  // With colliders block Jacobi on every grid (contact costs the V-cycle its
+  // reach); stiff, the factor all the same.
+  EXPECT_EQ(a.choose(Preconditioner::Auto, demo, 1.0 / 120.0, true), Preconditioner::BlockJacobi);
   const Model stiff = buildModel(calmHangingCloth(1e6, 1.0 / 120.0, Method::ImplicitEuler));
   EXPECT_EQ(a.choose(Preconditioner::Auto, stiff, 1.0 / 120.0), Preconditioner::Cholesky);
+  EXPECT_EQ(a.choose(Preconditioner::Auto, stiff, 1.0 / 120.0, true), Preconditioner::Cholesky);
   const Scene large =
       parseScene("cloth: {rows: 80, cols: 80}\n", {"springs.stretch.stiffness=1e6"});
   EXPECT_EQ(a.choose(Preconditioner::Auto, buildModel(large), 1.0 / 120.0),
