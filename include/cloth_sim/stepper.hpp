@@ -151,6 +151,9 @@ class Stepper {
   bool first_pass_ = true;  ///< the step's first contact pass (or no contact)
   VecX x_best_, v_best_, g_best_;  ///< the line search's best trial
   VecX v_start_;                   ///< Newton's first iterate
+  /// The last contact pass's answer: the next pass's Newton starts there
+  /// (empty on a step's first pass).
+  VecX v_pass_;
   std::vector<Vec3> damping_axes_;  ///< along-spring damping axes held over a Newton step
   bool axes_held_ = false;        ///< damping_axes_ hold for the last step
   double decrement_stop_ = 0.0;    ///< setDecrementStop
