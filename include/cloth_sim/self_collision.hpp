@@ -94,6 +94,8 @@ class SelfCollision {
   /// Fails (ok = false, x1 and v then partly filtered: the caller rolls the
   /// step back) when a zone holds fixed nodes that do not move as one
   /// translation, or the zones do not settle within their round limit.
+  /// `contacts` and `min_distance` are left to measure(): a step filters up
+  /// to 4 times and reports only the last.
   SelfCollisionResult apply(const Model& model, double h, const VecX& x0,
                             const SelfCollisionMasses& masses, VecX& x1, VecX& v);
 

@@ -193,6 +193,9 @@ class Simulation {
   /// work through the filter to pin_work.
   void resolveSelfCollision(double h, const History& history, std::optional<Method> as,
                             StepStats* stats, double* pin_work);
+  /// The step's self contacts and closest self distance, at its end (once,
+  /// after the last filter).
+  void measureSelfCollision(StepStats* stats);
   StepStats attempt(double h, bool reject_linear, bool reject_newton,
                     std::optional<Method> as = std::nullopt);
   /// attempt(h); a bdf2 step that gains energy is retried as backward Euler;

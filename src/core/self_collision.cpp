@@ -403,7 +403,6 @@ SelfCollisionResult SelfCollision::apply(const Model& model, double h, const Vec
     }
   }
   result.pin_work = pin_work / (h * h);
-  measure(x1, &result);
   return result;
 }
 

@@ -210,7 +210,10 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
   // The self-collision filter, then the step solved again with the nodes it
   // moved held where it put them (simulation_self.cpp).
   double self_pin_work = 0.0;
-  if (stats.ok && self_collision_.enabled()) resolveSelfCollision(h, history, as, &stats, &self_pin_work);
+  if (stats.ok && self_collision_.enabled()) {
+    resolveSelfCollision(h, history, as, &stats, &self_pin_work);
+    if (stats.ok) measureSelfCollision(&stats);
+  }
 
   // Work the pins did: reaction at the end of the step times their travel,
   // plus what they did through the self-collision response (impulses they
