@@ -21,18 +21,24 @@ constexpr double kSelfReach = 0.5;
 /// (the spring energy they store, ~k dx^2 / 2, is negligible).
 constexpr double kSettledShift = 0.01;
 
+using Clock = std::chrono::steady_clock;
+
+/// Books the time since `start` as self-collision time of the step.
+void chargeSelfCollision(Clock::time_point start, StepStats* stats) {
+  const double spent = std::chrono::duration<double>(Clock::now() - start).count();
+  stats->self_collision_s += spent;
+  stats->wall_time_s += spent;
+}
+
 }  // namespace
 
 void Simulation::filterSelfCollision(double h, StepStats* stats, double* pin_work) {
-  const auto start = std::chrono::steady_clock::now();
+  const auto start = Clock::now();
   selfCollisionMasses(pin_ends_.nodes, stepper_.contacts(), collider_step_, x_,
                       kSelfReach * scene_.self_collision.thickness, &self_masses_);
   x_pre_self_ = x_;  // what the filter moved, for the collider check
   const SelfCollisionResult self = self_collision_.apply(model_, h, x_save_, self_masses_, x_, v_);
-  const double spent =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  stats->self_collision_s += spent;
-  stats->wall_time_s += spent;
+  chargeSelfCollision(start, stats);
   if (!self.ok) stats->ok = false, stats->failure = self.failure;
   *pin_work += self.pin_work;
   std::string pushed;
@@ -42,15 +48,12 @@ void Simulation::filterSelfCollision(double h, StepStats* stats, double* pin_wor
 }
 
 void Simulation::measureSelfCollision(StepStats* stats) {
-  const auto start = std::chrono::steady_clock::now();
+  const auto start = Clock::now();
   SelfCollisionResult measured;
   self_collision_.measure(x_, &measured);
   stats->self_contacts = measured.contacts;
   stats->min_self_distance = measured.min_distance;
-  const double spent =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  stats->self_collision_s += spent;
-  stats->wall_time_s += spent;
+  chargeSelfCollision(start, stats);
 }
 
 void Simulation::resolveSelfCollision(double h, const History& history, std::optional<Method> as,

@@ -84,7 +84,7 @@ StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
     long queries = contact_.lastQueries();
     for (int pass = 1;; ++pass) {
       if (pass > 1) {
-        v_pass_ = v;
+        v_pass_.swap(v);  // v is reset below: no copy
         x = x0_;
         v = v0_;
         setPins(model, pins);
