@@ -35,6 +35,11 @@ SelfCollision::SelfCollision(const Model& model, const Scene::SelfCollision& par
       // without flagging layers that rest at the thickness.
       separation_(0.1 * params.thickness) {
   if (enabled_) mesh_ = buildCollisionMesh(model.numNodes(), model.triangles);
+  // A step queries 6-7 times (filters, CCD rounds, re-solves, the measure)
+  // with nodes moved by about the thickness between: a thickness of margin
+  // answers ~90 % of them from kept pairs (fold demo: the filter 5.4 -> 2.5
+  // ms a step; 4 thicknesses: fewer hashings, more pairs to filter, no gain).
+  hash_.setReuseMargin(params.thickness);
 }
 
 std::array<int, 4> SelfCollision::nodesOf(int kind, int a, int b) const {

@@ -88,7 +88,43 @@ void SpatialHash::findPairs(const CollisionMesh& mesh, const VecX& x0, const Vec
   const int n = mesh.num_nodes;
   const double pad = 0.5 * gap;
   node_box_.resize(n);
-  for (int i = 0; i < n; ++i) node_box_[i] = sweptNodeBox(x0, x1, i, pad);
+  for (int i = 0; i < n; ++i) node_box_[i] = sweptNodeBox(x0, x1, i, 0.0);
+  if (margin_ > 0.0 && kept_valid_ && kept_node_box_.size() == node_box_.size() &&
+      kept_triangles_ == mesh.triangles.size() && kept_edges_ == mesh.edges.size()) {
+    // Inside the kept boxes grown by their pad: every pair this query finds
+    // is a kept one.
+    double beyond = 0.0;
+    for (int i = 0; i < n; ++i) {
+      beyond = std::max({beyond, (kept_node_box_[i].lo - node_box_[i].lo).maxCoeff(),
+                         (node_box_[i].hi - kept_node_box_[i].hi).maxCoeff()});
+    }
+    if (pad + beyond <= kept_pad_) {
+      ++reused_;
+      filterKept(mesh, pad, out);
+      return;
+    }
+  }
+  ++hashed_;
+  if (margin_ == 0.0) {
+    hashPairs(mesh, pad);
+    std::swap(*out, kept_);
+    kept_valid_ = false;
+    return;
+  }
+  kept_node_box_ = node_box_;
+  kept_pad_ = pad + margin_;
+  kept_triangles_ = mesh.triangles.size();
+  kept_edges_ = mesh.edges.size();
+  hashPairs(mesh, kept_pad_);
+  kept_valid_ = true;
+  for (int i = 0; i < n; ++i) node_box_[i] = kept_node_box_[i];
+  filterKept(mesh, pad, out);
+}
+
+void SpatialHash::hashPairs(const CollisionMesh& mesh, double pad) {
+  kept_.clear();
+  const int n = mesh.num_nodes;
+  for (int i = 0; i < n; ++i) node_box_[i] = Box{node_box_[i].lo.array() - pad, node_box_[i].hi.array() + pad};
   tri_box_.resize(mesh.triangles.size());
   double extent = 0.0, largest = 0.0;
   for (size_t k = 0; k < mesh.triangles.size(); ++k) {
@@ -116,7 +152,7 @@ void SpatialHash::findPairs(const CollisionMesh& mesh, const VecX& x0, const Vec
         const int tri = tri_table_.ids[k];
         const Eigen::Vector3i& t = mesh.triangles[tri];
         if (t[0] == i || t[1] == i || t[2] == i || !box.overlaps(tri_box_[tri])) continue;
-        out->point_triangle.emplace_back(i, tri);
+        kept_.point_triangle.emplace_back(i, tri);
       }
     });
   }
@@ -131,14 +167,35 @@ void SpatialHash::findPairs(const CollisionMesh& mesh, const VecX& x0, const Vec
         if (b <= static_cast<int>(a)) continue;
         const int b0 = mesh.edges[b][0], b1 = mesh.edges[b][1];
         if (b0 == a0 || b0 == a1 || b1 == a0 || b1 == a1 || !box.overlaps(edge_box_[b])) continue;
-        out->edge_edge.emplace_back(static_cast<int>(a), b);
+        kept_.edge_edge.emplace_back(static_cast<int>(a), b);
       }
     });
   }
   // A pair shares several cells (and hashed buckets): keep it once.
-  for (auto* pairs : {&out->point_triangle, &out->edge_edge}) {
+  for (auto* pairs : {&kept_.point_triangle, &kept_.edge_edge}) {
     std::sort(pairs->begin(), pairs->end());
     pairs->erase(std::unique(pairs->begin(), pairs->end()), pairs->end());
+  }
+}
+
+void SpatialHash::filterKept(const CollisionMesh& mesh, double pad, CandidatePairs* out) {
+  // The boxes as a fresh query makes them (same arithmetic: same answer).
+  const int n = mesh.num_nodes;
+  for (int i = 0; i < n; ++i) node_box_[i] = Box{node_box_[i].lo.array() - pad, node_box_[i].hi.array() + pad};
+  tri_box_.resize(mesh.triangles.size());
+  for (size_t k = 0; k < mesh.triangles.size(); ++k) {
+    const Eigen::Vector3i& t = mesh.triangles[k];
+    tri_box_[k] = merge(merge(node_box_[t[0]], node_box_[t[1]]), node_box_[t[2]]);
+  }
+  edge_box_.resize(mesh.edges.size());
+  for (size_t k = 0; k < mesh.edges.size(); ++k) {
+    edge_box_[k] = merge(node_box_[mesh.edges[k][0]], node_box_[mesh.edges[k][1]]);
+  }
+  for (const auto& [node, tri] : kept_.point_triangle) {
+    if (node_box_[node].overlaps(tri_box_[tri])) out->point_triangle.emplace_back(node, tri);
+  }
+  for (const auto& [a, b] : kept_.edge_edge) {
+    if (edge_box_[a].overlaps(edge_box_[b])) out->edge_edge.emplace_back(a, b);
   }
 }
 

@@ -61,6 +61,46 @@ TEST(SpatialHash, FindsEveryPairBruteForceFinds) {
   }
 }
 
+TEST(SpatialHash, KeptPairsGiveWhatAFreshQueryGives) {
+  // A step's queries: small moves (answered from the kept pairs), a gap
+  // change, a static measure, and a move beyond the margin (hashed again).
+  // Each answer must equal a hash without reuse, pair for pair.
+  const Model model = buildModel(test::bareScene(9, 11));
+  const CollisionMesh mesh = buildCollisionMesh(model.numNodes(), model.triangles);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  VecX x0 = model.rest_positions;
+  for (int k = 0; k < x0.size(); ++k) x0[k] += 0.15 * u(rng);
+  VecX x1 = x0;
+  for (int k = 0; k < x1.size(); ++k) x1[k] += 0.05 * u(rng);
+  const double margin = 0.01;
+  SpatialHash kept, fresh;
+  kept.setReuseMargin(margin);
+  CandidatePairs a, b;
+  struct Query {
+    double move, gap;
+    bool still;  // x0 = x1 (a measure)
+  };
+  const Query queries[] = {{0.0, 0.02, false},  {0.003, 0.02, false}, {0.003, 0.002, false},
+                           {0.0, 0.02, true},   {0.004, 0.02, false}, {0.2, 0.02, false},
+                           {0.002, 0.02, false}};
+  for (const Query& q : queries) {
+    for (int k = 0; k < x1.size(); ++k) x1[k] += q.move * u(rng);
+    const VecX& start = q.still ? x1 : x0;
+    kept.findPairs(mesh, start, x1, q.gap, &a);
+    fresh.findPairs(mesh, start, x1, q.gap, &b);
+    EXPECT_GT(a.point_triangle.size() + a.edge_edge.size(), 20u);
+    EXPECT_EQ(a.point_triangle, b.point_triangle);
+    EXPECT_EQ(a.edge_edge, b.edge_edge);
+  }
+  // Hashed: the first query, the 0.2 m move and whichever small moves
+  // added up past the margin; the rest came from the kept pairs.
+  EXPECT_GE(kept.hashedQueries(), 2);
+  EXPECT_GE(kept.reusedQueries(), 3);
+  EXPECT_EQ(kept.hashedQueries() + kept.reusedQueries(), 7);
+  EXPECT_EQ(fresh.reusedQueries(), 0);
+}
+
 TEST(SpatialHash, EdgesAreUniqueAndComplete) {
   const Model model = buildModel(test::bareScene(4, 5));
   const CollisionMesh mesh = buildCollisionMesh(model.numNodes(), model.triangles);
