@@ -47,7 +47,7 @@ class SystemMatrix {
     d.iso[s.node] = iso;
     d.axis[s.node] = axis;
     for (int c = 0; c < 3; ++c) d.u[c][s.node] = u[c];
-    full_diag_valid_ = false;
+    changed();
   }
   /// Adds damping c w w^T (w unit) to spring k's block: the along-spring
   /// damping of an axis w held over the step. Kept until reset(); once one
@@ -58,7 +58,7 @@ class SystemMatrix {
     Coefficients& d = coefficients_[s.direction];
     d.c[s.node] = damping;
     for (int c = 0; c < 3; ++c) d.w[c][s.node] = w[c];
-    full_diag_valid_ = false;
+    changed();
   }
   /// One direction's coupling arrays, per slot (the assembly's sweeps write
   /// them): S = iso I + axis u u^T, plus c w w^T after useDampingAxes().
@@ -67,7 +67,7 @@ class SystemMatrix {
     std::vector<double> c, w[3];  ///< sized by useDampingAxes()
   };
   Coefficients& coefficients(int direction) {
-    full_diag_valid_ = false;
+    changed();
     return coefficients_[direction];
   }
   /// Makes the held damping axes part of the matrix until reset().
@@ -76,7 +76,7 @@ class SystemMatrix {
   /// Jacobian): couplings beyond the spring list, kept until reset().
   void addNodeBlock(int node, const Mat3& block) {
     node_blocks_.emplace_back(node, SymBlock::from(block));
-    full_diag_valid_ = false;
+    changed();
   }
   const std::vector<std::pair<int, SymBlock>>& nodeBlocks() const { return node_blocks_; }
   /// Node block without the couplings: nodeScale(i) * I.
@@ -85,11 +85,30 @@ class SystemMatrix {
   Mat3 coupling(int spring) const { return couplingBlock(spring).toMat3(); }
   SymBlock couplingBlock(int spring) const;
 
-  /// y = A x, unfiltered (contact reactions).
+  /// y = A x, unfiltered (contact reactions), in double precision.
   void multiplyAll(const VecX& x, VecX& y) const;
   /// y = A x on vectors split by component (x[c * n + i]; CG's layout);
-  /// y must not alias x.
+  /// y must not alias x. After allowSinglePrecision, in single precision
+  /// from the second product on where that fits the tolerance.
   void multiplySplit(const double* x, double* y) const;
+  /// CG tells the matrix its relative tolerance before a solve: the
+  /// products after the first may round the springs' terms to single
+  /// precision (the node blocks stay double) if singlePrecisionFits. Not the
+  /// first: a solve of one product would pay for the float copies and gain
+  /// nothing (the seed scene at rest).
+  void allowSinglePrecision(double tolerance) const {
+    single_tolerance_ = tolerance;
+    single_products_ = 0;
+  }
+  /// Whether rounding the terms to float is far below `tolerance`: when
+  /// 2^-24 times the largest ratio of a node's couplings to its node block,
+  /// times 40, is at most the tolerance (a term's few roundings, kept 10x
+  /// below what CG is asked for). Stiff cloth (couplings >> mass) stays
+  /// double: a float spring axis would leak its stiffness into the soft
+  /// directions.
+  bool singlePrecisionFits(double tolerance) const;
+  /// The largest ratio of a node's summed coupling norms to its node block.
+  double couplingToMassRatio() const;
   /// Full diagonal block of node i including its springs' couplings (summed
   /// on first use after the couplings changed: only block Jacobi and Cholesky
   /// need them).
@@ -97,6 +116,10 @@ class SystemMatrix {
   const std::vector<SymBlock>& fullDiagonal() const;
 
  private:
+  void changed() { full_diag_valid_ = false, single_valid_ = false, ratio_valid_ = false; }
+  void multiplySplitDouble(const double* x, double* y) const;
+  void multiplySplitSingle(const double* x, double* y) const;  // system_matrix_single.cpp
+  void makeSingleCopies() const;
   std::shared_ptr<const SpringLayout> layout_;
   std::vector<double> node_scale_;  ///< node block = node_scale_ * I
   std::vector<Coefficients> coefficients_;  ///< per direction of the layout
@@ -109,6 +132,21 @@ class SystemMatrix {
   mutable std::vector<double> x_split_, y_split_, diag_split_;
   mutable std::vector<sweeps::PaddedTerms> direction_terms_;
   mutable sweeps::PaddedTerms terms_;
+  /// The single-precision product's copies: per direction its coefficients
+  /// (iso, axis, u0..u2, then c, w0..w2 when held) and padded terms, the
+  /// float x and the summed terms.
+  struct SingleDirection {
+    std::vector<float> coefficients;
+    std::vector<float> terms;  ///< 3 components of n + offset, offset zeros first
+  };
+  mutable std::vector<SingleDirection> single_dirs_;
+  mutable std::vector<float> x_single_, sum_single_;
+  mutable double single_tolerance_ = 0.0;  ///< allowSinglePrecision's; 0: double
+  mutable int single_products_ = 0;        ///< products since
+  mutable bool single_valid_ = false;      ///< the float copies are of this matrix
+  mutable std::vector<double> coupled_;  ///< per node, couplingToMassRatio's sums
+  mutable double ratio_ = 0.0;
+  mutable bool ratio_valid_ = false;
 };
 
 inline SymBlock SystemMatrix::couplingBlock(int spring) const {

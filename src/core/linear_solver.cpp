@@ -216,6 +216,7 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
   const int dim = 3 * n;
   const std::vector<char>& free = filter.freeMask();
   filter.apply(x);
+  A.allowSinglePrecision(tolerance);
 
   // The iteration runs on vectors split by component (the product's layout).
   ws.x.resize(dim);

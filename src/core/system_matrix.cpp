@@ -89,8 +89,9 @@ void SystemMatrix::resize(const std::shared_ptr<const SpringLayout>& layout) {
     node_scale_.assign(n, 0.0);
     has_damping_axes_ = false;
     node_blocks_.clear();
+    single_dirs_.clear();
   }
-  full_diag_valid_ = false;
+  changed();
 }
 
 void SystemMatrix::useDampingAxes() {
@@ -100,14 +101,14 @@ void SystemMatrix::useDampingAxes() {
     }
   }
   has_damping_axes_ = true;
-  full_diag_valid_ = false;
+  changed();
 }
 
 void SystemMatrix::reset(const std::vector<double>& mass, double extra_diagonal) {
   for (size_t i = 0; i < node_scale_.size(); ++i) node_scale_[i] = mass[i] + extra_diagonal;
   node_blocks_.clear();
   has_damping_axes_ = false;
-  full_diag_valid_ = false;
+  changed();
 }
 
 const std::vector<SymBlock>& SystemMatrix::fullDiagonal() const {
@@ -142,11 +143,11 @@ void SystemMatrix::multiplyAll(const VecX& x_in, VecX& y_out) const {
   x_split_.resize(3 * n);
   y_split_.resize(3 * n);
   sweeps::splitComponents(x_in, x_split_.data());
-  multiplySplit(x_split_.data(), y_split_.data());
+  multiplySplitDouble(x_split_.data(), y_split_.data());
   sweeps::joinComponents(y_split_.data(), n, y_out.data());
 }
 
-void SystemMatrix::multiplySplit(const double* xs, double* ys) const {
+void SystemMatrix::multiplySplitDouble(const double* xs, double* ys) const {
   const int n = numNodes();
   const size_t count = coefficients_.size();
   direction_terms_.resize(count);

@@ -3,13 +3,15 @@
 // an offset, squares) its product and block diagonal equal the sums over
 // its blocks written out per spring, with and without held damping axes;
 // springs it cannot lay out are refused. Extra node blocks (contact friction)
-// are part of both.
+// are part of both. The single-precision product is taken only where its
+// rounding is far below CG's tolerance.
 #include <gtest/gtest.h>
 
 #include <random>
 #include <stdexcept>
 
 #include "cloth_sim/forces.hpp"
+#include "cloth_sim/spring_sweeps.hpp"
 #include "scene_builders.hpp"
 
 namespace cloth_sim {
@@ -87,6 +89,89 @@ TEST(SystemMatrix, ProductAndDiagonalAreTheSumsOfTheBlocksOnEveryGridShape) {
       for (int i = 0; i < n; ++i) {
         EXPECT_LE((A.fullDiag(i) - diag[i]).norm(), 1e-14 * diag[i].norm()) << "node " << i;
       }
+    }
+  }
+}
+
+// The single-precision product (system_matrix_single.cpp): taken only where
+// its rounding is far below CG's tolerance (soft couplings, loose
+// tolerance), and then within float rounding of the double product; stiff
+// couplings or a tight tolerance keep the double product to the bit, and so
+// does a matrix changed since the choice.
+TEST(SystemMatrix, SinglePrecisionProductOnlyWhereItsRoundingIsFarBelowTheTolerance) {
+  const int shapes[][2] = {{1, 6}, {2, 5}, {9, 7}};
+  for (const auto& shape : shapes) {
+    for (bool held : {false, true}) {
+      SCOPED_TRACE(std::to_string(shape[0]) + "x" + std::to_string(shape[1]) +
+                   (held ? " with held damping axes" : ""));
+      const Model m = gridModel(shape[0], shape[1]);
+      const int n = m.numNodes(), springs = static_cast<int>(m.springs.size());
+      std::mt19937 rng(3 * n + held);
+      std::uniform_real_distribution<double> unit(0.0, 1.0);
+      auto fill = [&](SystemMatrix& A, double scale) {
+        A.resize(m.layout);
+        A.reset(m.mass);
+        std::vector<double> coupled(n, 0.0);
+        for (int k = 0; k < springs; ++k) {
+          const double iso = scale * unit(rng), axis = scale * unit(rng);
+          A.setCoupling(k, iso, axis, unitVector(rng));
+          double norm = iso + axis;
+          if (held) {
+            const double c = scale * unit(rng);
+            A.setDampingAxis(k, c, unitVector(rng));
+            norm += c;
+          }
+          coupled[m.springs[k].i] += norm;
+          coupled[m.springs[k].j] += norm;
+        }
+        double ratio = 0.0;
+        for (int i = 0; i < n; ++i) ratio = std::max(ratio, coupled[i] / m.mass[i]);
+        return ratio;
+      };
+      VecX x(3 * n);
+      for (int k = 0; k < x.size(); ++k) x[k] = unit(rng) - 0.5;
+      std::vector<double> xs(3 * n), ys(3 * n);
+      sweeps::splitComponents(x, xs.data());
+      auto product = [&](const SystemMatrix& A) {
+        A.multiplySplit(xs.data(), ys.data());
+        VecX y(3 * n);
+        sweeps::joinComponents(ys.data(), n, y.data());
+        return y;
+      };
+
+      // Soft: couplings about 20 times the node mass.
+      SystemMatrix soft;
+      const double ratio = fill(soft, 20.0 * m.mass[0]);
+      EXPECT_NEAR(soft.couplingToMassRatio(), ratio, 1e-12 * ratio);
+      VecX exact;
+      soft.multiplyAll(x, exact);
+      ASSERT_TRUE(soft.singlePrecisionFits(1e-2));
+      soft.allowSinglePrecision(1e-2);
+      EXPECT_EQ(product(soft), exact);  // the first product of a solve: double
+      const VecX rounded = product(soft);
+      const double size = (ratio + 1.0) * m.mass[0] * x.lpNorm<Eigen::Infinity>();
+      EXPECT_GT((rounded - exact).lpNorm<Eigen::Infinity>(), 0.0);  // float was used
+      EXPECT_LT((rounded - exact).lpNorm<Eigen::Infinity>(), 1e-6 * size);
+      // A tight tolerance: double, to the bit.
+      EXPECT_FALSE(soft.singlePrecisionFits(1e-8));
+      soft.allowSinglePrecision(1e-8);
+      for (int k = 0; k < 3; ++k) EXPECT_EQ(product(soft), exact);
+      // Changed after float copies were made: the copies are made anew.
+      soft.allowSinglePrecision(1e-2);
+      product(soft);
+      product(soft);
+      soft.setCoupling(0, 1.0 * m.mass[0], 0.5 * m.mass[0], Vec3::UnitX());
+      soft.multiplyAll(x, exact);
+      EXPECT_LT((product(soft) - exact).lpNorm<Eigen::Infinity>(), 1e-6 * size);
+
+      // Stiff: couplings 1e7 times the node mass (stretch 1e7 at dt 1/30 on
+      // the demo cloth is ~3e7): double at any tolerance CG is given.
+      SystemMatrix stiff;
+      fill(stiff, 1e7 * m.mass[0]);
+      EXPECT_FALSE(stiff.singlePrecisionFits(1e-1));
+      stiff.allowSinglePrecision(1e-1);
+      stiff.multiplyAll(x, exact);
+      for (int k = 0; k < 3; ++k) EXPECT_EQ(product(stiff), exact);
     }
   }
 }

@@ -1,0 +1,221 @@
+// The system matrix's product in single precision, for CG solves whose
+// tolerance is far above what float rounding does to it (see
+// SystemMatrix::singlePrecisionFits). The product's sweeps are bound by
+// their loads and instructions (docs/profile.md): in float a vector holds
+// twice the lanes, and the product on a 32 x 32 cloth takes 3.9 us where
+// double takes 8.0. The node blocks (mass, friction) stay double.
+#include <algorithm>
+#include <cmath>
+
+#include "cloth_sim/system_matrix.hpp"
+#include "vectorised.hpp"
+
+namespace cloth_sim {
+
+namespace {
+
+/// Rounding of a product's term relative to the coupling it comes from: a
+/// few float roundings (2^-24 each), kept 10x below the CG tolerance.
+constexpr double kSingleRounding = 40.0 * 0x1p-24;
+
+CLOTH_SIM_VECTORISED
+void toSingle(int count, const double* __restrict in, float* __restrict out) {
+  for (int p = 0; p < count; ++p) out[p] = static_cast<float>(in[p]);
+}
+
+/// As directionTerms (system_matrix.cpp), in float.
+CLOTH_SIM_VECTORISED
+void directionTermsSingle(int count, int offset, const float* __restrict x0,
+                          const float* __restrict x1, const float* __restrict x2,
+                          const float* __restrict iso, const float* __restrict axis,
+                          const float* __restrict u0, const float* __restrict u1,
+                          const float* __restrict u2, const float* __restrict c,
+                          const float* __restrict w0, const float* __restrict w1,
+                          const float* __restrict w2, float* __restrict t0,
+                          float* __restrict t1, float* __restrict t2) {
+  if (c) {
+    for (int p = 0; p < count; ++p) {
+      const float d0 = x0[p] - x0[p + offset], d1 = x1[p] - x1[p + offset],
+                  d2 = x2[p] - x2[p + offset];
+      const float a = axis[p] * (u0[p] * d0 + u1[p] * d1 + u2[p] * d2);
+      const float e = c[p] * (w0[p] * d0 + w1[p] * d1 + w2[p] * d2);
+      t0[p] = iso[p] * d0 + a * u0[p] + e * w0[p];
+      t1[p] = iso[p] * d1 + a * u1[p] + e * w1[p];
+      t2[p] = iso[p] * d2 + a * u2[p] + e * w2[p];
+    }
+    return;
+  }
+  for (int p = 0; p < count; ++p) {
+    const float d0 = x0[p] - x0[p + offset], d1 = x1[p] - x1[p + offset],
+                d2 = x2[p] - x2[p + offset];
+    const float a = axis[p] * (u0[p] * d0 + u1[p] * d1 + u2[p] * d2);
+    t0[p] = iso[p] * d0 + a * u0[p];
+    t1[p] = iso[p] * d1 + a * u1[p];
+    t2[p] = iso[p] * d2 + a * u2[p];
+  }
+}
+
+/// Each t has its offset's zeros before slot 0 and zeros in its last slots:
+/// t[p] - t[p - o] is slot p's term on its lower end minus that of the slot
+/// whose upper end p is.
+
+/// sum (first: =, else +=) the differences of directions a and b (b may be
+/// null): the pairs before the last.
+CLOTH_SIM_VECTORISED
+void addDifferencesSingle(int n, const float* __restrict ta, int oa, const float* __restrict tb,
+                          int ob, bool first, float* __restrict sum) {
+  if (tb && first) {
+    for (int p = 0; p < n; ++p) sum[p] = (ta[p] - ta[p - oa]) + (tb[p] - tb[p - ob]);
+  } else if (tb) {
+    for (int p = 0; p < n; ++p) sum[p] += (ta[p] - ta[p - oa]) + (tb[p] - tb[p - ob]);
+  } else if (first) {
+    for (int p = 0; p < n; ++p) sum[p] = ta[p] - ta[p - oa];
+  } else {
+    for (int p = 0; p < n; ++p) sum[p] += ta[p] - ta[p - oa];
+  }
+}
+
+/// y = m x + (sum +) the last pair's differences, in double (sum null: the
+/// only pair).
+CLOTH_SIM_VECTORISED
+void finishSingle(int n, const float* __restrict ta, int oa, const float* __restrict tb, int ob,
+                  const float* __restrict sum, const double* __restrict m,
+                  const double* __restrict x, double* __restrict y) {
+  if (tb && sum) {
+    for (int p = 0; p < n; ++p) {
+      y[p] = m[p] * x[p] + static_cast<double>(sum[p] + ((ta[p] - ta[p - oa]) + (tb[p] - tb[p - ob])));
+    }
+  } else if (sum) {
+    for (int p = 0; p < n; ++p) y[p] = m[p] * x[p] + static_cast<double>(sum[p] + (ta[p] - ta[p - oa]));
+  } else if (tb) {
+    for (int p = 0; p < n; ++p) {
+      y[p] = m[p] * x[p] + static_cast<double>((ta[p] - ta[p - oa]) + (tb[p] - tb[p - ob]));
+    }
+  } else {
+    for (int p = 0; p < n; ++p) y[p] = m[p] * x[p] + static_cast<double>(ta[p] - ta[p - oa]);
+  }
+}
+
+}  // namespace
+
+double SystemMatrix::couplingToMassRatio() const {
+  if (ratio_valid_) return ratio_;
+  const int n = numNodes();
+  // Per node: its node block and the norms (bounds) of the couplings at
+  // both ends of each slot.
+  std::vector<double>& coupled = coupled_;
+  coupled.assign(n, 0.0);
+  for (size_t k = 0; k < coefficients_.size(); ++k) {
+    const Coefficients& d = coefficients_[k];
+    const int o = layout_->directions[k].offset;
+    for (int p = 0; p + o < n; ++p) {
+      double norm = std::abs(d.iso[p]) + std::abs(d.axis[p]);
+      if (has_damping_axes_) norm += std::abs(d.c[p]);
+      coupled[p] += norm;
+      coupled[p + o] += norm;
+    }
+  }
+  double ratio = 0.0;
+  for (int i = 0; i < n; ++i) {
+    // A node block of zero or less with couplings: no bound, stay double.
+    if (coupled[i] > 0.0) {
+      ratio = node_scale_[i] > 0.0 ? std::max(ratio, coupled[i] / node_scale_[i]) : INFINITY;
+    }
+  }
+  ratio_ = ratio;
+  ratio_valid_ = true;
+  return ratio_;
+}
+
+bool SystemMatrix::singlePrecisionFits(double tolerance) const {
+  // Below kSingleRounding no cloth fits (its ratio would be under 1): the
+  // bound's pass is skipped.
+  return layout_ && tolerance >= kSingleRounding &&
+         couplingToMassRatio() * kSingleRounding <= tolerance;
+}
+
+void SystemMatrix::multiplySplit(const double* xs, double* ys) const {
+  if (single_tolerance_ > 0.0 && ++single_products_ > 1 && singlePrecisionFits(single_tolerance_)) {
+    if (!single_valid_) makeSingleCopies();
+    multiplySplitSingle(xs, ys);
+  } else {
+    multiplySplitDouble(xs, ys);
+  }
+}
+
+void SystemMatrix::makeSingleCopies() const {
+  const int n = numNodes();
+  single_dirs_.resize(coefficients_.size());
+  for (size_t k = 0; k < coefficients_.size(); ++k) {
+    const Coefficients& d = coefficients_[k];
+    SingleDirection& s = single_dirs_[k];
+    const int o = layout_->directions[k].offset;
+    const size_t terms = 3 * static_cast<size_t>(n + o);
+    if (s.terms.size() != terms) s.terms.assign(terms, 0.0f);  // the padding stays zero
+    s.coefficients.resize((has_damping_axes_ ? 9 : 5) * static_cast<size_t>(n));
+    float* out = s.coefficients.data();
+    for (const std::vector<double>* a : {&d.iso, &d.axis, &d.u[0], &d.u[1], &d.u[2]}) {
+      toSingle(n, a->data(), out);
+      out += n;
+    }
+    if (has_damping_axes_) {
+      for (const std::vector<double>* a : {&d.c, &d.w[0], &d.w[1], &d.w[2]}) {
+        toSingle(n, a->data(), out);
+        out += n;
+      }
+    }
+  }
+  single_valid_ = true;
+}
+
+void SystemMatrix::multiplySplitSingle(const double* xs, double* ys) const {
+  const int n = numNodes();
+  x_single_.resize(3 * static_cast<size_t>(n));
+  sum_single_.resize(3 * static_cast<size_t>(n));
+  toSingle(3 * n, xs, x_single_.data());
+  const float* x = x_single_.data();
+  float* sum = sum_single_.data();
+  const size_t count = single_dirs_.size();
+  if (count == 0) {
+    for (int i = 0; i < 3 * n; ++i) ys[i] = node_scale_[i % n] * xs[i];
+  }
+  // Two directions' terms at a time, then their differences into the sums
+  // while the terms are still in cache; the last pair's with y = m x.
+  auto terms = [&](size_t k, size_t* stride) {
+    SingleDirection& s = single_dirs_[k];
+    const int o = layout_->directions[k].offset;
+    const float* c = s.coefficients.data();
+    const bool held = s.coefficients.size() == 9 * static_cast<size_t>(n);
+    *stride = static_cast<size_t>(n + o);
+    float* t = s.terms.data() + o;
+    directionTermsSingle(n - o, o, x, x + n, x + 2 * n, c, c + n, c + 2 * n, c + 3 * n,
+                         c + 4 * n, held ? c + 5 * n : nullptr, held ? c + 6 * n : nullptr,
+                         held ? c + 7 * n : nullptr, held ? c + 8 * n : nullptr, t, t + *stride,
+                         t + 2 * *stride);
+    return static_cast<const float*>(t);
+  };
+  for (size_t k = 0; k < count; k += 2) {
+    size_t stride_a = 0, stride_b = 0;
+    const float* ta = terms(k, &stride_a);
+    const float* tb = k + 1 < count ? terms(k + 1, &stride_b) : nullptr;
+    const int oa = layout_->directions[k].offset;
+    const int ob = tb ? layout_->directions[k + 1].offset : 0;
+    const bool last = k + 2 >= count;
+    for (int comp = 0; comp < 3; ++comp) {
+      const float* a = ta + comp * stride_a;
+      const float* b = tb ? tb + comp * stride_b : nullptr;
+      if (last) {
+        finishSingle(n, a, oa, b, ob, k == 0 ? nullptr : sum + comp * n, node_scale_.data(),
+                     xs + comp * n, ys + comp * n);
+      } else {
+        addDifferencesSingle(n, a, oa, b, ob, k == 0, sum + comp * n);
+      }
+    }
+  }
+  for (const auto& [node, block] : node_blocks_) {
+    const Vec3 y = block * Vec3(xs[node], xs[n + node], xs[2 * n + node]);
+    for (int c = 0; c < 3; ++c) ys[c * n + node] += y[c];
+  }
+}
+
+}  // namespace cloth_sim
