@@ -3,15 +3,14 @@
 #include <algorithm>
 
 #include "cloth_sim/spring_sweeps.hpp"
+#include "direction_terms.hpp"
 #include "vectorised.hpp"
 
 namespace cloth_sim {
 
 namespace {
 
-/// Per slot p < count of one direction (ends p and p + offset): the coupling
-/// term t = S (x_p - x_{p+offset}), written to t0..t2 at p. Held damping
-/// axes (c, w) are added where c is given.
+/// One direction's coupling terms (direction_terms.hpp), in double.
 CLOTH_SIM_VECTORISED
 void directionTerms(int count, int offset, const double* __restrict x0,
                     const double* __restrict x1, const double* __restrict x2,
@@ -21,26 +20,8 @@ void directionTerms(int count, int offset, const double* __restrict x0,
                     const double* __restrict w0, const double* __restrict w1,
                     const double* __restrict w2, double* __restrict t0,
                     double* __restrict t1, double* __restrict t2) {
-  if (c) {
-    for (int p = 0; p < count; ++p) {
-      const double d0 = x0[p] - x0[p + offset], d1 = x1[p] - x1[p + offset],
-                   d2 = x2[p] - x2[p + offset];
-      const double a = axis[p] * (u0[p] * d0 + u1[p] * d1 + u2[p] * d2);
-      const double e = c[p] * (w0[p] * d0 + w1[p] * d1 + w2[p] * d2);
-      t0[p] = iso[p] * d0 + a * u0[p] + e * w0[p];
-      t1[p] = iso[p] * d1 + a * u1[p] + e * w1[p];
-      t2[p] = iso[p] * d2 + a * u2[p] + e * w2[p];
-    }
-    return;
-  }
-  for (int p = 0; p < count; ++p) {
-    const double d0 = x0[p] - x0[p + offset], d1 = x1[p] - x1[p + offset],
-                 d2 = x2[p] - x2[p + offset];
-    const double a = axis[p] * (u0[p] * d0 + u1[p] * d1 + u2[p] * d2);
-    t0[p] = iso[p] * d0 + a * u0[p];
-    t1[p] = iso[p] * d1 + a * u1[p];
-    t2[p] = iso[p] * d2 + a * u2[p];
-  }
+  detail::directionTerms(count, offset, x0, x1, x2, iso, axis, u0, u1, u2, c, w0, w1, w2, t0,
+                         t1, t2);
 }
 
 /// Per slot p < count: the coupling block's 6 entries (xx, yy, zz, xy, xz,

@@ -8,6 +8,7 @@
 #include <cmath>
 
 #include "cloth_sim/system_matrix.hpp"
+#include "direction_terms.hpp"
 #include "vectorised.hpp"
 
 namespace cloth_sim {
@@ -23,7 +24,7 @@ void toSingle(int count, const double* __restrict in, float* __restrict out) {
   for (int p = 0; p < count; ++p) out[p] = static_cast<float>(in[p]);
 }
 
-/// As directionTerms (system_matrix.cpp), in float.
+/// One direction's coupling terms (direction_terms.hpp), in float.
 CLOTH_SIM_VECTORISED
 void directionTermsSingle(int count, int offset, const float* __restrict x0,
                           const float* __restrict x1, const float* __restrict x2,
@@ -33,26 +34,8 @@ void directionTermsSingle(int count, int offset, const float* __restrict x0,
                           const float* __restrict w0, const float* __restrict w1,
                           const float* __restrict w2, float* __restrict t0,
                           float* __restrict t1, float* __restrict t2) {
-  if (c) {
-    for (int p = 0; p < count; ++p) {
-      const float d0 = x0[p] - x0[p + offset], d1 = x1[p] - x1[p + offset],
-                  d2 = x2[p] - x2[p + offset];
-      const float a = axis[p] * (u0[p] * d0 + u1[p] * d1 + u2[p] * d2);
-      const float e = c[p] * (w0[p] * d0 + w1[p] * d1 + w2[p] * d2);
-      t0[p] = iso[p] * d0 + a * u0[p] + e * w0[p];
-      t1[p] = iso[p] * d1 + a * u1[p] + e * w1[p];
-      t2[p] = iso[p] * d2 + a * u2[p] + e * w2[p];
-    }
-    return;
-  }
-  for (int p = 0; p < count; ++p) {
-    const float d0 = x0[p] - x0[p + offset], d1 = x1[p] - x1[p + offset],
-                d2 = x2[p] - x2[p + offset];
-    const float a = axis[p] * (u0[p] * d0 + u1[p] * d1 + u2[p] * d2);
-    t0[p] = iso[p] * d0 + a * u0[p];
-    t1[p] = iso[p] * d1 + a * u1[p];
-    t2[p] = iso[p] * d2 + a * u2[p];
-  }
+  detail::directionTerms(count, offset, x0, x1, x2, iso, axis, u0, u1, u2, c, w0, w1, w2, t0,
+                         t1, t2);
 }
 
 /// Each t has its offset's zeros before slot 0 and zeros in its last slots:
