@@ -124,7 +124,9 @@ void SpatialHash::findPairs(const CollisionMesh& mesh, const VecX& x0, const Vec
 void SpatialHash::hashPairs(const CollisionMesh& mesh, double pad) {
   kept_.clear();
   const int n = mesh.num_nodes;
-  for (int i = 0; i < n; ++i) node_box_[i] = Box{node_box_[i].lo.array() - pad, node_box_[i].hi.array() + pad};
+  for (int i = 0; i < n; ++i) {
+    node_box_[i] = Box{node_box_[i].lo.array() - pad, node_box_[i].hi.array() + pad};
+  }
   tri_box_.resize(mesh.triangles.size());
   double extent = 0.0, largest = 0.0;
   for (size_t k = 0; k < mesh.triangles.size(); ++k) {
@@ -181,7 +183,9 @@ void SpatialHash::hashPairs(const CollisionMesh& mesh, double pad) {
 void SpatialHash::filterKept(const CollisionMesh& mesh, double pad, CandidatePairs* out) {
   // The boxes as a fresh query makes them (same arithmetic: same answer).
   const int n = mesh.num_nodes;
-  for (int i = 0; i < n; ++i) node_box_[i] = Box{node_box_[i].lo.array() - pad, node_box_[i].hi.array() + pad};
+  for (int i = 0; i < n; ++i) {
+    node_box_[i] = Box{node_box_[i].lo.array() - pad, node_box_[i].hi.array() + pad};
+  }
   tri_box_.resize(mesh.triangles.size());
   for (size_t k = 0; k < mesh.triangles.size(); ++k) {
     const Eigen::Vector3i& t = mesh.triangles[k];

@@ -66,10 +66,13 @@ void finishSingle(int n, const float* __restrict ta, int oa, const float* __rest
                   const double* __restrict x, double* __restrict y) {
   if (tb && sum) {
     for (int p = 0; p < n; ++p) {
-      y[p] = m[p] * x[p] + static_cast<double>(sum[p] + ((ta[p] - ta[p - oa]) + (tb[p] - tb[p - ob])));
+      const float t = sum[p] + ((ta[p] - ta[p - oa]) + (tb[p] - tb[p - ob]));
+      y[p] = m[p] * x[p] + static_cast<double>(t);
     }
   } else if (sum) {
-    for (int p = 0; p < n; ++p) y[p] = m[p] * x[p] + static_cast<double>(sum[p] + (ta[p] - ta[p - oa]));
+    for (int p = 0; p < n; ++p) {
+      y[p] = m[p] * x[p] + static_cast<double>(sum[p] + (ta[p] - ta[p - oa]));
+    }
   } else if (tb) {
     for (int p = 0; p < n; ++p) {
       y[p] = m[p] * x[p] + static_cast<double>((ta[p] - ta[p - oa]) + (tb[p] - tb[p - ob]));
@@ -118,7 +121,8 @@ bool SystemMatrix::singlePrecisionFits(double tolerance) const {
 }
 
 void SystemMatrix::multiplySplit(const double* xs, double* ys) const {
-  if (single_tolerance_ > 0.0 && ++single_products_ > 1 && singlePrecisionFits(single_tolerance_)) {
+  if (single_tolerance_ > 0.0 && ++single_products_ > 1 &&
+      singlePrecisionFits(single_tolerance_)) {
     if (!single_valid_) makeSingleCopies();
     multiplySplitSingle(xs, ys);
   } else {
