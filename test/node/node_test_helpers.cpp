@@ -114,8 +114,18 @@ bool NodeClient::reset(cloth_sim::ClothState* state, visualization_msgs::Marker*
 }
 
 bool NodeClient::waitDiagnostics(diagnostic_msgs::DiagnosticStatus* status, double timeout_s) {
+  // Stamped after this call: one already queued (published before a service
+  // call just answered) would show the state before it (a flake under load).
+  const ros::Time after = ros::Time::now();
   diagnostics_.clear();
-  const bool got = spinUntil([&] { return !diagnostics_.empty(); }, timeout_s);
+  const bool got = spinUntil(
+      [&] {
+        while (!diagnostics_.empty() && !(diagnostics_.front().first > after)) {
+          diagnostics_.pop_front();
+        }
+        return !diagnostics_.empty();
+      },
+      timeout_s);
   if (got) *status = diagnostics_.front().second;
   return got;
 }
