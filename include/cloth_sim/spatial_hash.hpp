@@ -68,6 +68,8 @@ class SpatialHash {
     unsigned mask = 0;
   };
   void buildTable(const std::vector<Box>& boxes, Table* table);
+  /// Grows node_box_ by pad in place and builds tri_box_ and edge_box_ from it.
+  void padBoxes(const CollisionMesh& mesh, double pad);
   /// Every non-adjacent pair whose boxes (node_box_ grown by pad) overlap,
   /// into kept_ (sorted, unique).
   void hashPairs(const CollisionMesh& mesh, double pad);

@@ -117,30 +117,37 @@ void SpatialHash::findPairs(const CollisionMesh& mesh, const VecX& x0, const Vec
   kept_edges_ = mesh.edges.size();
   hashPairs(mesh, kept_pad_);
   kept_valid_ = true;
-  for (int i = 0; i < n; ++i) node_box_[i] = kept_node_box_[i];
+  node_box_ = kept_node_box_;  // unpadded again, for filterKept to pad
   filterKept(mesh, pad, out);
 }
 
-void SpatialHash::hashPairs(const CollisionMesh& mesh, double pad) {
-  kept_.clear();
+void SpatialHash::padBoxes(const CollisionMesh& mesh, double pad) {
   const int n = mesh.num_nodes;
   for (int i = 0; i < n; ++i) {
     node_box_[i] = Box{node_box_[i].lo.array() - pad, node_box_[i].hi.array() + pad};
   }
   tri_box_.resize(mesh.triangles.size());
-  double extent = 0.0, largest = 0.0;
   for (size_t k = 0; k < mesh.triangles.size(); ++k) {
     const Eigen::Vector3i& t = mesh.triangles[k];
     tri_box_[k] = merge(merge(node_box_[t[0]], node_box_[t[1]]), node_box_[t[2]]);
-    const double e = (tri_box_[k].hi - tri_box_[k].lo).maxCoeff();
-    extent += e;
-    largest = std::max(largest, e);
   }
   edge_box_.resize(mesh.edges.size());
   for (size_t k = 0; k < mesh.edges.size(); ++k) {
     edge_box_[k] = merge(node_box_[mesh.edges[k][0]], node_box_[mesh.edges[k][1]]);
   }
+}
+
+void SpatialHash::hashPairs(const CollisionMesh& mesh, double pad) {
+  kept_.clear();
+  const int n = mesh.num_nodes;
+  padBoxes(mesh, pad);
   if (mesh.triangles.empty()) return;
+  double extent = 0.0, largest = 0.0;
+  for (const Box& b : tri_box_) {
+    const double e = (b.hi - b.lo).maxCoeff();
+    extent += e;
+    largest = std::max(largest, e);
+  }
   // Cells about a triangle's box: each element then covers a few cells. A
   // fast element's box is capped at 8 cells a side by growing the cell.
   cell_ = std::max({extent / mesh.triangles.size(), largest / 8.0, 1e-9});
@@ -181,20 +188,7 @@ void SpatialHash::hashPairs(const CollisionMesh& mesh, double pad) {
 }
 
 void SpatialHash::filterKept(const CollisionMesh& mesh, double pad, CandidatePairs* out) {
-  // The boxes as a fresh query makes them (same arithmetic: same answer).
-  const int n = mesh.num_nodes;
-  for (int i = 0; i < n; ++i) {
-    node_box_[i] = Box{node_box_[i].lo.array() - pad, node_box_[i].hi.array() + pad};
-  }
-  tri_box_.resize(mesh.triangles.size());
-  for (size_t k = 0; k < mesh.triangles.size(); ++k) {
-    const Eigen::Vector3i& t = mesh.triangles[k];
-    tri_box_[k] = merge(merge(node_box_[t[0]], node_box_[t[1]]), node_box_[t[2]]);
-  }
-  edge_box_.resize(mesh.edges.size());
-  for (size_t k = 0; k < mesh.edges.size(); ++k) {
-    edge_box_[k] = merge(node_box_[mesh.edges[k][0]], node_box_[mesh.edges[k][1]]);
-  }
+  padBoxes(mesh, pad);  // as a fresh query makes them (same arithmetic: same answer)
   for (const auto& [node, tri] : kept_.point_triangle) {
     if (node_box_[node].overlaps(tri_box_[tri])) out->point_triangle.emplace_back(node, tri);
   }
