@@ -76,7 +76,13 @@ class Stepper {
   void clearContacts() { contact_.clear(); }
   /// After an implicit step whose pins have directions (or any newton/bdf2
   /// step): b h times the force its constraints put on each node at the end,
-  /// M (v1 - av) - b h f(x1, v1) (av: v0 for backward Euler), into out (3n).
+  /// M (v1 - av) - b h f(x1, v1) (av: v0 for backward Euler), into out (3n);
+  /// after implicit_euler's linearized step, what its linear system's
+  /// constraints supplied, A dv - rhs: its answer does not balance
+  /// f(x1, v1), and the difference swamped the constraint (the twist at
+  /// stretch 1e8: +3.9e-3 N s from the system, -1.7 from f(x1, v1); a
+  /// third of the held nodes' signs wrong over the run at 1e7 and 1e8, a
+  /// tenth at the scene's 2e3).
   void constraintImpulses(const Model& model, const VecX& x1, const VecX& v1, VecX* out);
   /// The along-spring damping axes the last step's forces used, one per
   /// spring, or null where they were the springs' own (see newtonSolve).
@@ -139,6 +145,7 @@ class Stepper {
   ContactSet contact_;
   bool contact_on_ = false;  ///< this step has colliders
   double bh_ = 0.0;          ///< the last solve's b h (reaction scale)
+  bool linearized_ = false;  ///< the last solve was implicitEuler's: reaction_ is A dv - rhs0_
   VecX x0_, v0_, reaction_, rhs0_;
   const PinnedEnds* pins_ = nullptr;
   SystemMatrix A_;

@@ -23,6 +23,8 @@ constexpr double kMaxReach = 4.0;
 // kProximitySweeps.
 constexpr double kProximitySettled = 1e-3;
 constexpr int kProximitySweeps = 30;
+// A node's room towards its collider below this many thicknesses is none.
+constexpr double kRoomRoundOff = 1e-9;
 
 }  // namespace
 
@@ -87,10 +89,17 @@ void SelfCollision::makePair(int kind, int a, int b, const std::array<Vec3, 4>& 
   pair->target = pair->distance;
 }
 
-Vec3 SelfCollision::nodeShare(int i, double w, const Vec3& dx) const {
+double SelfCollision::room(int i, const VecX& x1) const {
+  const double away = room_[i] + normal_[i].dot(x1.segment<3>(3 * i) - x1_in_.segment<3>(3 * i));
+  // Round-off left by a push that took all of it is none (else the next
+  // sweep would still count the node free, and converge slowly).
+  return away > kRoomRoundOff * thickness_ ? away : 0.0;
+}
+
+Vec3 SelfCollision::nodeShare(int i, double w, const Vec3& dx, double room) const {
   Vec3 d = (w * inv_mass_[i]) * dx;
   const double into = normal_[i].dot(d);
-  if (into < 0.0) d -= into * normal_[i];
+  if (into < -room) d -= (into + room) * normal_[i];
   return d;
 }
 
@@ -98,15 +107,22 @@ double SelfCollision::impulse(Pair& pair, const VecX& x0, VecX& x1, double* pin_
   Vec3 rel1 = Vec3::Zero(), rel0 = Vec3::Zero();
   // K: the relative position's displacement per impulse, sum w_k^2 / m_k
   // P_k, P_k the projector off node k's collider normal where the impulse
-  // pushes the node into that surface, else the identity (nodeShare).
+  // pushes the node into that surface and it has no room left there
+  // (nodeShare), else the identity.
   Mat3 K = Mat3::Zero();
+  double reach = 0.0;
+  double rooms[4];
   for (int k = 0; k < 4; ++k) {
     const int i = pair.node[k];
     rel1 += pair.w[k] * x1.segment<3>(3 * i);
     rel0 += pair.w[k] * x0.segment<3>(3 * i);
+    rooms[k] = room(i, x1);
     Mat3 P = Mat3::Identity();
-    if (pair.w[k] * pair.n.dot(normal_[i]) < 0.0) P -= normal_[i] * normal_[i].transpose();
+    if (pair.w[k] * pair.n.dot(normal_[i]) < 0.0 && rooms[k] == 0.0) {
+      P -= normal_[i] * normal_[i].transpose();
+    }
     K += (pair.w[k] * pair.w[k] * inv_mass_[i]) * P;
+    reach = std::max(reach, (std::abs(pair.w[k]) * inv_mass_[i] * P * pair.n).norm());
   }
   const double gap = pair.n.dot(rel1);
   const double denom = pair.n.dot(K * pair.n);
@@ -116,8 +132,6 @@ double SelfCollision::impulse(Pair& pair, const VecX& x0, VecX& x1, double* pin_
   // Where the movable nodes carry little of the closest points (the rest
   // pinned or held by a collider), closing the gap would throw them far
   // (the gap over their small weight): the impact zones handle that pair.
-  double reach = 0.0;
-  for (int k = 0; k < 4; ++k) reach = std::max(reach, nodeShare(pair.node[k], pair.w[k], pair.n).norm());
   if (reach > kMaxReach * denom) return 0.0;
   // Inelastic: the normal impulse brings the end gap up to the target and no
   // further (no bounce). Accumulated over the sweeps, it shrinks where other
@@ -150,7 +164,7 @@ double SelfCollision::impulse(Pair& pair, const VecX& x0, VecX& x1, double* pin_
   if (dx.isZero(0.0)) return 0.0;
   for (int k = 0; k < 4; ++k) {
     const int i = pair.node[k];
-    x1.segment<3>(3 * i) += nodeShare(i, pair.w[k], dx);
+    x1.segment<3>(3 * i) += nodeShare(i, pair.w[k], dx, rooms[k]);
     // A pin holds its node against the impulse's share w_k dx / h (momentum)
     // while moving at (x1 - x0) / h: it does work -w_k dx . (x1 - x0) / h^2.
     if (fixed_[i]) *pin_work -= pair.w[k] * dx.dot(x1.segment<3>(3 * i) - x0.segment<3>(3 * i));
@@ -300,6 +314,7 @@ SelfCollisionResult SelfCollision::apply(const Model& model, double h, const Vec
   inv_mass_.resize(n);
   mass_ = model.mass;
   normal_.assign(n, Vec3::Zero());
+  room_.assign(n, 0.0);
   fixed_.assign(n, 0);
   for (int i = 0; i < n; ++i) inv_mass_[i] = model.mass[i] > 0.0 ? 1.0 / model.mass[i] : 0.0;
   for (size_t k = 0; k < masses.heavy.size(); ++k) {
@@ -309,6 +324,7 @@ SelfCollisionResult SelfCollision::apply(const Model& model, double h, const Vec
       inv_mass_[i] = 0.0;
     } else {
       normal_[i] = normal.normalized();
+      if (k < masses.heavy_room.size()) room_[i] = masses.heavy_room[k];
     }
   }
   for (int i : masses.fixed) inv_mass_[i] = 0.0, fixed_[i] = 1, normal_[i].setZero();

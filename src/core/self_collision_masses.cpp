@@ -10,17 +10,19 @@
 namespace cloth_sim {
 
 void selfCollisionMasses(const std::vector<int>& pinned, const ContactSet& contacts,
-                         const CollidersOverStep& colliders, const VecX& x1, double reach,
-                         SelfCollisionMasses* out) {
+                         const CollidersOverStep& colliders, const VecX& x0, const VecX& x1,
+                         double reach, SelfCollisionMasses* out) {
   out->fixed = pinned;
   out->heavy.clear();
   out->heavy_normal.clear();
+  out->heavy_room.clear();
   if (colliders.empty()) return;
   const int n = static_cast<int>(x1.size() / 3);
   // Per node: the normal of the one surface it is near, or zero when near
   // two (wedged: it may not move at all).
   std::vector<int> near(n, 0);
   std::vector<Vec3> normal(n, Vec3::Zero());
+  std::vector<double> room(n, 0.0);
   auto hold = [&](int i, const Vec3& nrm) {
     if (near[i] == 0) {
       normal[i] = nrm;
@@ -42,17 +44,22 @@ void selfCollisionMasses(const std::vector<int>& pinned, const ContactSet& conta
     for (int i = 0; i < n; ++i) {
       if (near[i] >= 2) continue;
       const SurfacePoint sp = collider.closest(x1.segment<3>(3 * i), colliders.end[c]);
-      if (sp.distance < colliders.thickness + reach) hold(i, sp.normal);
+      if (!(sp.distance < colliders.thickness + reach)) continue;
+      hold(i, sp.normal);
+      // Measured against the surface, which may have moved over the step.
+      const double d0 = collider.closest(x0.segment<3>(3 * i), colliders.start[c]).distance;
+      room[i] = std::max(sp.distance - d0, 0.0);
     }
   }
   for (int i = 0; i < n; ++i) {
     if (near[i] == 0) continue;
     out->heavy.push_back(i);
     out->heavy_normal.push_back(near[i] >= 2 ? Vec3::Zero() : normal[i]);
+    out->heavy_room.push_back(room[i]);
   }
 }
 
-int pushedIntoCollider(const CollidersOverStep& colliders, const VecX& before,
+int pushedIntoCollider(const CollidersOverStep& colliders, const VecX& x0, const VecX& before,
                        const VecX& after, std::string* which) {
   if (colliders.empty()) return -1;
   const int n = static_cast<int>(after.size() / 3);
@@ -62,8 +69,13 @@ int pushedIntoCollider(const CollidersOverStep& colliders, const VecX& before,
       const Collider& collider = (*colliders.colliders)[c];
       const double d1 = collider.closest(after.segment<3>(3 * i), colliders.end[c]).distance;
       if (d1 >= colliders.thickness) continue;
-      const double d0 = collider.closest(before.segment<3>(3 * i), colliders.end[c]).distance;
-      // Deeper than the solve left it (round-off aside).
+      // Deeper than the solve left it (round-off aside), and than the step
+      // started: the filter may push a node back towards the surface by
+      // what it moved away in the step (SelfCollision::room), which for a
+      // node that started on the band ends it there.
+      const double d0 = std::min(
+          collider.closest(before.segment<3>(3 * i), colliders.end[c]).distance,
+          collider.closest(x0.segment<3>(3 * i), colliders.start[c]).distance);
       if (d1 < d0 - 1e-9 * (1.0 + colliders.thickness)) {
         *which = "self-collision pushed node " + std::to_string(i) + " into collider '" +
                  collider.name() + "'";

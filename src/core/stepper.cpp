@@ -202,8 +202,11 @@ StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v)
   // Pinned velocity changes are prescribed: move their columns to the right side.
   pinned_dv_.setZero(3 * n);
   bool pins_move = false;
+  // Without friction or prescribed columns: the constraints' reaction (the
+  // contacts', the held nodes') is measured against it.
+  const bool react = contact_on_ || !pins_->directions.empty();
+  if (react) rhs0_ = rhs_;
   if (contact_on_) {
-    rhs0_ = rhs_;  // without friction: the contact reaction is measured against it
     pins_move = contact_.prescribeChange(x, h, v, pinned_dv_);
     contact_.addFriction(rhs_, h, v);  // at v0; its turn term in A acts on dv
     contact_.addFrictionJacobian(A_, h);
@@ -250,7 +253,7 @@ StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v)
   if (pins_move) dv_ += pinned_dv_;  // else it is zero
   v += dv_;
   x += h * v;
-  if (contact_on_) {  // reaction = A dv - rhs0: what the constraints supplied, times h
+  if (react) {  // reaction = A dv - rhs0: what the constraints supplied, times h
     A_.multiplyAll(dv_, g_);
     reaction_ = g_ - rhs0_;
     for (const auto& [node, block] : A_.nodeBlocks()) {  // friction is not a reaction
@@ -258,6 +261,7 @@ StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v)
     }
     bh_ = h;
   }
+  linearized_ = react;
   if (pins_move) dv_ -= pinned_dv_;  // the free part warm-starts the next solve
   placePins(x);
   return stats;
@@ -290,6 +294,7 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
   if (&ax_in != &ax_) ax_ = ax_in;
   if (&av_in != &av_) av_ = av_in;
   bh_ = bh;
+  linearized_ = false;
   VecX& v1 = v;
   // A later contact pass starts from the last pass's answer: the contact set
   // changed at a few nodes, the answer little (its constrained parts are set
@@ -463,6 +468,10 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
 }
 
 void Stepper::constraintImpulses(const Model& model, const VecX& x1, const VecX& v1, VecX* out) {
+  if (linearized_) {
+    *out = reaction_;
+    return;
+  }
   computeForces(model, x1, v1, f_, dampingAxes());
   out->resize(v1.size());
   for (int i = 0; i < model.numNodes(); ++i) {
