@@ -196,7 +196,6 @@ StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v)
   StepStats stats;
   const int n = model.numNodes();
   auto t0 = Clock::now();
-  if (!pins_->directions.empty()) av_ = v, bh_ = h;  // constraintImpulses
   assembleSystem(model, x, v, h, h * h, settings_.project_compression, A_, f_, &v, &dfdx_v_);
   rhs_ = h * (f_ + h * dfdx_v_);
   // Pinned velocity changes are prescribed: move their columns to the right side.
