@@ -42,6 +42,9 @@ struct SelfCollisionResult {
   /// farther apart are not looked at), infinity when none is near
   double min_distance = std::numeric_limits<double>::infinity();
   int proximity_impulses = 0;
+  /// Gauss-Seidel sweeps the proximity impulses took to settle (the limit,
+  /// 30, when they did not)
+  int proximity_sweeps = 0;
   int ccd_impulses = 0;
   int zone_rounds = 0;  ///< rounds of impact zones (0: impulses sufficed)
   int zone_nodes = 0;   ///< nodes moved rigidly
@@ -182,6 +185,7 @@ class SelfCollision {
   };
   std::vector<Hit> hits_;
   VecX x1_in_;
+  VecX x_sweep_;  ///< x1 at the start of a proximity sweep
 };
 
 }  // namespace cloth_sim
