@@ -25,8 +25,8 @@ constexpr double kMaxReach = 4.0;
 // impulse to each other at a fraction of a percent a sweep, each pair's gap
 // changing by as much while the node stays put: the folded towel at rest
 // stopped at the sweep limit at every step (30 sweeps, 4.2 of the filter's
-// 5.4 ms a step), its nodes still after 5. Tighter than the 1e-3 of a pair's
-// gap this replaced: at that, the twist at stretch 1e7, dt 0.01, failed.
+// 5.4 ms a step), its nodes still after 5. Not 1e-3: at that much node
+// motion the twist at stretch 1e7, dt 0.01, failed on energy.
 constexpr double kProximitySettled = 1e-4;
 constexpr int kProximitySweeps = 30;
 // A node's room towards its collider below this many thicknesses is none.
