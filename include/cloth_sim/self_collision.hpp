@@ -185,7 +185,8 @@ class SelfCollision {
   };
   std::vector<Hit> hits_;
   VecX x1_in_;
-  VecX x_sweep_;  ///< x1 at the start of a proximity sweep
+  std::vector<int> sweep_nodes_;    ///< the nodes of the close pairs (sorted, unique)
+  std::vector<Vec3> sweep_start_;   ///< their x1 at the start of a proximity sweep
 };
 
 }  // namespace cloth_sim

@@ -363,16 +363,22 @@ SelfCollisionResult SelfCollision::apply(const Model& model, double h, const Vec
   // Projected Gauss-Seidel: pairs share nodes, so one pass over them
   // overshoots where a later pair lifts a node an earlier one already set
   // (by up to half its correction); the sweeps take that back.
+  // Only the nodes of close pairs move: the sweeps' stop looks at those.
+  sweep_nodes_.clear();
+  for (const Pair& pair : close) sweep_nodes_.insert(sweep_nodes_.end(), pair.node, pair.node + 4);
+  std::sort(sweep_nodes_.begin(), sweep_nodes_.end());
+  sweep_nodes_.erase(std::unique(sweep_nodes_.begin(), sweep_nodes_.end()), sweep_nodes_.end());
+  sweep_start_.resize(sweep_nodes_.size());
   for (int sweep = 0; sweep < kProximitySweeps && !close.empty(); ++sweep) {
-    x_sweep_ = x1;
+    for (size_t k = 0; k < sweep_nodes_.size(); ++k) sweep_start_[k] = x1.segment<3>(3 * sweep_nodes_[k]);
     ++result.proximity_sweeps;
     for (Pair& pair : close) {
       const double change = impulse(pair, x0, x1, &pin_work);
       if (sweep == 0) result.proximity_impulses += change > 0.0;
     }
     double largest = 0.0;
-    for (int i = 0; i < n; ++i) {
-      largest = std::max(largest, (x1.segment<3>(3 * i) - x_sweep_.segment<3>(3 * i)).squaredNorm());
+    for (size_t k = 0; k < sweep_nodes_.size(); ++k) {
+      largest = std::max(largest, (x1.segment<3>(3 * sweep_nodes_[k]) - sweep_start_[k]).squaredNorm());
     }
     if (largest <= std::pow(kProximitySettled * thickness_, 2)) break;
   }
