@@ -145,6 +145,7 @@ StepStats Stepper::runMethod(const Model& model, double h, const History& histor
                              VecX& v, Method method) {
   StepStats stats;
   axes_held_ = false;  // newtonSolve holds them where it should
+  linearized_ = false;  // implicitEuler sets it where its reaction is A dv - rhs
   switch (method) {
     case Method::ImplicitEuler:
       stats = implicitEuler(model, h, x, v);
@@ -293,7 +294,6 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
   if (&ax_in != &ax_) ax_ = ax_in;
   if (&av_in != &av_) av_ = av_in;
   bh_ = bh;
-  linearized_ = false;
   VecX& v1 = v;
   // A later contact pass starts from the last pass's answer: the contact set
   // changed at a few nodes, the answer little (its constrained parts are set
