@@ -1,6 +1,6 @@
 // Time per step, CG iterations and residual on the seed scene and the demo
 // cloth at 32x32, 64x64, 128x128. Release build, single thread.
-//   step_benchmark [--steps N] [--repeats R] [SCENE.yaml ...]
+//   step_benchmark [--steps N] [--repeats R] [--set key=value ...] [SCENE.yaml ...]
 // With no scene arguments it runs the standard set from the package config.
 #include <algorithm>
 #include <chrono>
@@ -64,16 +64,20 @@ Result run(const cloth_sim::Scene& scene, int steps, int repeats) {
 int main(int argc, char** argv) {
   int steps = 200, repeats = 5;
   std::vector<Case> cases;
+  std::vector<std::string> sets;  // applied to every scene named on the command line
   for (int a = 1; a < argc; ++a) {
     const std::string arg = argv[a];
     if (arg == "--steps" && a + 1 < argc) {
       steps = std::atoi(argv[++a]);
     } else if (arg == "--repeats" && a + 1 < argc) {
       repeats = std::atoi(argv[++a]);
+    } else if (arg == "--set" && a + 1 < argc) {
+      sets.push_back(argv[++a]);
     } else {
       cases.push_back({arg, arg, {}});
     }
   }
+  for (Case& c : cases) c.overrides = sets;
   if (cases.empty()) {
     const std::string dir = CLOTH_SIM_SOURCE_DIR "/config/";
     const std::string seed = dir + "scenes/seed.yaml", demo = dir + "demo.yaml";

@@ -164,8 +164,13 @@ class SelfCollision {
   /// near a collider is a wall only against impulses that push it in;
   /// pushed away it moves with its own mass (held both ways, a layer
   /// falling onto one on a table threw its other nodes by the whole gap:
-  /// fold.yaml, energy jump, issue 14).
-  Vec3 nodeShare(int i, double w, const Vec3& dx, double room) const;
+  /// fold.yaml, energy jump, issue 14). Where the pair's push (along +n)
+  /// meets the wall (`wall`: into the surface, no room), none of the node's
+  /// share along the normal, whichever the sign of dx: an accumulated
+  /// impulse eased off in a later sweep must not lift a node its push never
+  /// moved (offset layers on a table: 0.23 mm; with the towel's table nodes
+  /// held along their normal, its top layer crept up 0.3 um a step).
+  Vec3 nodeShare(int i, double w, const Vec3& dx, double room, bool wall) const;
   /// How far node i, at x1, may still be pushed into its collider's surface
   /// before it is a wall: its travel away from the surface in the step
   /// (SelfCollisionMasses::heavy_room, plus the filter's own moves along the

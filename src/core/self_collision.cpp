@@ -102,10 +102,14 @@ double SelfCollision::room(int i, const VecX& x1) const {
   return away > kRoomRoundOff * thickness_ ? away : 0.0;
 }
 
-Vec3 SelfCollision::nodeShare(int i, double w, const Vec3& dx, double room) const {
+Vec3 SelfCollision::nodeShare(int i, double w, const Vec3& dx, double room, bool wall) const {
   Vec3 d = (w * inv_mass_[i]) * dx;
-  const double into = normal_[i].dot(d);
-  if (into < -room) d -= (into + room) * normal_[i];
+  const double along = normal_[i].dot(d);
+  if (wall) {
+    d -= along * normal_[i];
+  } else if (along < -room) {
+    d -= (along + room) * normal_[i];
+  }
   return d;
 }
 
@@ -118,15 +122,15 @@ double SelfCollision::impulse(Pair& pair, const VecX& x0, VecX& x1, double* pin_
   Mat3 K = Mat3::Zero();
   double reach = 0.0;
   double rooms[4];
+  bool walls[4];
   for (int k = 0; k < 4; ++k) {
     const int i = pair.node[k];
     rel1 += pair.w[k] * x1.segment<3>(3 * i);
     rel0 += pair.w[k] * x0.segment<3>(3 * i);
     rooms[k] = room(i, x1);
+    walls[k] = pair.w[k] * pair.n.dot(normal_[i]) < 0.0 && rooms[k] == 0.0;
     Mat3 P = Mat3::Identity();
-    if (pair.w[k] * pair.n.dot(normal_[i]) < 0.0 && rooms[k] == 0.0) {
-      P -= normal_[i] * normal_[i].transpose();
-    }
+    if (walls[k]) P -= normal_[i] * normal_[i].transpose();
     K += (pair.w[k] * pair.w[k] * inv_mass_[i]) * P;
     reach = std::max(reach, (std::abs(pair.w[k]) * inv_mass_[i] * P * pair.n).norm());
   }
@@ -170,7 +174,7 @@ double SelfCollision::impulse(Pair& pair, const VecX& x0, VecX& x1, double* pin_
   if (dx.isZero(0.0)) return 0.0;
   for (int k = 0; k < 4; ++k) {
     const int i = pair.node[k];
-    x1.segment<3>(3 * i) += nodeShare(i, pair.w[k], dx, rooms[k]);
+    x1.segment<3>(3 * i) += nodeShare(i, pair.w[k], dx, rooms[k], walls[k]);
     // A pin holds its node against the impulse's share w_k dx / h (momentum)
     // while moving at (x1 - x0) / h: it does work -w_k dx . (x1 - x0) / h^2.
     if (fixed_[i]) *pin_work -= pair.w[k] * dx.dot(x1.segment<3>(3 * i) - x0.segment<3>(3 * i));
@@ -444,7 +448,8 @@ SelfCollisionResult SelfCollision::apply(const Model& model, double h, const Vec
 }
 
 void SelfCollision::measure(const VecX& x, SelfCollisionResult* result) {
-  hash_.findPairs(mesh_, x, x, thickness_, &pairs_);
+  // Wide enough for the pairs resting just beyond the thickness.
+  hash_.findPairs(mesh_, x, x, (1.0 + kRestingSlack) * thickness_, &pairs_);
   result->contacts = 0;
   result->min_distance = std::numeric_limits<double>::infinity();
   std::array<Vec3, 4> at;
