@@ -157,6 +157,51 @@ TEST(SelfCollision, AFoldedClothRestingOnATableStaysAtRestWithoutRejectedSteps) 
   }
 }
 
+/// A folded cloth's step on a table, for the filter alone: rows 0-4 on the
+/// table (held against moves into it), rows 7-11 lying back over them at
+/// the thickness (row 11 over row 0; shifted across by `shift` spacings in
+/// x and y), rows 5-6 the crease between, clear of both; x1 and v: every
+/// node off the table fallen g h^2 in the step.
+struct FoldedStep {
+  VecX x0, x1, v;
+  SelfCollisionMasses masses;
+  std::vector<int> top, bottom;
+};
+
+FoldedStep foldedStep(const Model& m, double thickness, const Vec3& shift) {
+  const double ds = kSize / (kN - 1);
+  FoldedStep f;
+  f.x0 = m.rest_positions;
+  for (int row = 0; row < kN; ++row) {
+    for (int col = 0; col < kN; ++col) {
+      const int i = m.index(row, col);
+      double x = f.x0[3 * i], y = -row * ds, z = 0.0;
+      if (row == 5 || row == 6) y = -4.5 * ds, z = (row - 4) * 0.01;
+      if (row >= 7) {
+        x += shift.x() * ds, y = -(kN - 1 - row + shift.y()) * ds, z = thickness;
+        f.top.push_back(i);
+      }
+      if (row <= 4) {
+        f.bottom.push_back(i);
+        f.masses.heavy.push_back(i);
+        f.masses.heavy_normal.push_back(Vec3::UnitZ());
+        f.masses.heavy_room.push_back(0.0);
+      }
+      f.x0.segment<3>(3 * i) = Vec3(x, y, z);
+    }
+  }
+  return f;
+}
+
+/// x1 and v of `f` for its x0: what is off the table fell g h^2.
+void fall(const Model& m, double h, FoldedStep* f) {
+  f->x1 = f->x0;
+  f->v = VecX::Zero(f->x0.size());
+  for (int i = 0; i < m.numNodes(); ++i) {
+    if (f->x0[3 * i + 2] > 0.0) f->x1[3 * i + 2] -= 9.81 * h * h, f->v[3 * i + 2] = -9.81 * h;
+  }
+}
+
 TEST(SelfCollision, SetsAFallenRestingLayerBackInAFewSweeps) {
   // The filter alone, on the step of a folded cloth at rest on a table: the
   // top layer, lying at the thickness on the bottom one (held by the table),
@@ -166,51 +211,28 @@ TEST(SelfCollision, SetsAFallenRestingLayerBackInAFewSweeps) {
   Simulation sim(s);
   const Model& m = sim.model();
   const double thickness = s.self_collision.thickness, h = 1.0 / 120.0;
-  // Rows 0-4 on the table, rows 7-11 lying back over them at the thickness
-  // (row 11 over row 0), rows 5-6 the crease between, clear of both.
-  const double ds = kSize / (kN - 1);
-  VecX x0 = m.rest_positions;
-  std::vector<int> top;
-  SelfCollisionMasses masses;
-  for (int row = 0; row < kN; ++row) {
-    for (int col = 0; col < kN; ++col) {
-      const int i = m.index(row, col);
-      double y = -row * ds, z = 0.0;
-      if (row == 5 || row == 6) y = -4.5 * ds, z = (row - 4) * 0.01;
-      if (row >= 7) y = -(kN - 1 - row) * ds, z = thickness, top.push_back(i);
-      if (row <= 4) {
-        masses.heavy.push_back(i);  // on the table
-        masses.heavy_normal.push_back(Vec3::UnitZ());
-        masses.heavy_room.push_back(0.0);
-      }
-      x0[3 * i + 1] = y;
-      x0[3 * i + 2] = z;
-    }
-  }
+  FoldedStep f = foldedStep(m, thickness, Vec3::Zero());
   // The top layer tilted by a millimetre over its length (a cloth does not
   // lie flat to the micrometre), and resting: the layers touch at its low
   // edge.
   double low = 1e300;
-  for (int i : top) low = std::min(low, x0[3 * i + 1]);
-  for (int i : top) x0[3 * i + 2] += 0.001 * (x0[3 * i + 1] - low) / kSize;
-  VecX x1 = x0, v = VecX::Zero(x0.size());
-  for (int i = 0; i < m.numNodes(); ++i) {
-    if (x0[3 * i + 2] > 0.0) x1[3 * i + 2] -= 9.81 * h * h, v[3 * i + 2] = -9.81 * h;
-  }
+  for (int i : f.top) low = std::min(low, f.x0[3 * i + 1]);
+  for (int i : f.top) f.x0[3 * i + 2] += 0.001 * (f.x0[3 * i + 1] - low) / kSize;
+  fall(m, h, &f);
   SelfCollision filter(m, s.self_collision);
-  const SelfCollisionResult r = filter.apply(m, h, x0, masses, x1, v);
+  const SelfCollisionResult r = filter.apply(m, h, f.x0, f.masses, f.x1, f.v);
   ASSERT_TRUE(r.ok) << r.failure;
   EXPECT_GT(r.proximity_impulses, 0);
   EXPECT_LE(r.proximity_sweeps, 10);
   // Set back to the thickness where it fell into it, and not lifted above
   // where it started.
-  for (int i : top) {
-    const double fell = x0[3 * i + 2] - 9.81 * h * h;
-    EXPECT_GT(x1[3 * i + 2], std::min(fell, thickness) - 1e-3 * thickness) << "node " << i;
-    EXPECT_LT(x1[3 * i + 2], x0[3 * i + 2] + 1e-3 * thickness) << "node " << i;
+  for (int i : f.top) {
+    const double fell = f.x0[3 * i + 2] - 9.81 * h * h;
+    EXPECT_GT(f.x1[3 * i + 2], std::min(fell, thickness) - 1e-3 * thickness) << "node " << i;
+    EXPECT_LT(f.x1[3 * i + 2], f.x0[3 * i + 2] + 1e-3 * thickness) << "node " << i;
   }
   std::printf("[ sweeps   ] resting layer of %zu nodes: %d proximity impulses, %d sweeps\n",
-              top.size(), r.proximity_impulses, r.proximity_sweeps);
+              f.top.size(), r.proximity_impulses, r.proximity_sweeps);
 }
 
 TEST(SelfCollision, NeverLiftsALayerHeldOnATableByEasingOffItsPush) {
@@ -224,37 +246,14 @@ TEST(SelfCollision, NeverLiftsALayerHeldOnATableByEasingOffItsPush) {
   Simulation sim(s);
   const Model& m = sim.model();
   const double thickness = s.self_collision.thickness, h = 1.0 / 120.0;
-  const double ds = kSize / (kN - 1);
-  VecX x0 = m.rest_positions;
-  SelfCollisionMasses masses;
-  std::vector<int> bottom;
-  for (int row = 0; row < kN; ++row) {
-    for (int col = 0; col < kN; ++col) {
-      const int i = m.index(row, col);
-      double y = -row * ds, x = x0[3 * i], z = 0.0;
-      if (row == 5 || row == 6) y = -4.5 * ds, z = (row - 4) * 0.01;
-      if (row >= 7) y = -(kN - 1 - row) * ds - 0.3 * ds, x += 0.4 * ds, z = thickness;
-      if (row <= 4) {
-        bottom.push_back(i);
-        masses.heavy.push_back(i);
-        masses.heavy_normal.push_back(Vec3::UnitZ());
-        masses.heavy_room.push_back(0.0);
-      }
-      x0[3 * i] = x;
-      x0[3 * i + 1] = y;
-      x0[3 * i + 2] = z;
-    }
-  }
-  VecX x1 = x0, v = VecX::Zero(x0.size());
-  for (int i = 0; i < m.numNodes(); ++i) {
-    if (x0[3 * i + 2] > 0.0) x1[3 * i + 2] -= 9.81 * h * h, v[3 * i + 2] = -9.81 * h;
-  }
+  FoldedStep f = foldedStep(m, thickness, Vec3(0.4, 0.3, 0.0));
+  fall(m, h, &f);
   SelfCollision filter(m, s.self_collision);
-  const SelfCollisionResult r = filter.apply(m, h, x0, masses, x1, v);
+  const SelfCollisionResult r = filter.apply(m, h, f.x0, f.masses, f.x1, f.v);
   ASSERT_TRUE(r.ok) << r.failure;
   EXPECT_GT(r.proximity_impulses, 0);
   double lifted = 0.0;
-  for (int i : bottom) lifted = std::max(lifted, std::abs(x1[3 * i + 2]));
+  for (int i : f.bottom) lifted = std::max(lifted, std::abs(f.x1[3 * i + 2]));
   EXPECT_LT(lifted, 1e-12 * thickness);
   std::printf("[ offset   ] %d proximity impulses, %d sweeps, bottom layer moved %.3g m along the normal\n",
               r.proximity_impulses, r.proximity_sweeps, lifted);
