@@ -64,7 +64,7 @@ Result run(const cloth_sim::Scene& scene, int steps, int repeats) {
 int main(int argc, char** argv) {
   int steps = 200, repeats = 5;
   std::vector<Case> cases;
-  std::vector<std::string> sets;  // applied to every scene named on the command line
+  std::vector<std::string> sets;  // applied to every case, after its own overrides
   for (int a = 1; a < argc; ++a) {
     const std::string arg = argv[a];
     if (arg == "--steps" && a + 1 < argc) {
@@ -77,7 +77,6 @@ int main(int argc, char** argv) {
       cases.push_back({arg, arg, {}});
     }
   }
-  for (Case& c : cases) c.overrides = sets;
   if (cases.empty()) {
     const std::string dir = CLOTH_SIM_SOURCE_DIR "/config/";
     const std::string seed = dir + "scenes/seed.yaml", demo = dir + "demo.yaml";
@@ -98,6 +97,7 @@ int main(int argc, char** argv) {
       }
     }
   }
+  for (Case& c : cases) c.overrides.insert(c.overrides.end(), sets.begin(), sets.end());
   std::printf("%-46s %12s %9s %7s %11s %9s\n", "scene", "us/step", "CG mean", "CG max",
               "max resid", "assembly");
   for (const Case& c : cases) {
