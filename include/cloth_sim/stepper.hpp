@@ -84,6 +84,11 @@ class Stepper {
   /// third of the held nodes' signs wrong over the run at 1e7 and 1e8, a
   /// tenth at the scene's 2e3).
   void constraintImpulses(const Model& model, const VecX& x1, const VecX& v1, VecX* out);
+  /// Whether the last solve was implicit_euler's linearized step with its
+  /// reaction kept (A dv - rhs; constraintImpulses returns it), and its
+  /// scale b h (= h): constraintImpulses / reactionScale() is a force.
+  bool linearizedReaction() const { return linearized_; }
+  double reactionScale() const { return bh_; }
   /// The along-spring damping axes the last step's forces used, one per
   /// spring, or null where they were the springs' own (see newtonSolve).
   const std::vector<Vec3>* dampingAxes() const { return axes_held_ ? &damping_axes_ : nullptr; }

@@ -203,8 +203,12 @@ StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v)
   pinned_dv_.setZero(3 * n);
   bool pins_move = false;
   // Without friction or prescribed columns: the constraints' reaction (the
-  // contacts', the held nodes') is measured against it.
-  const bool react = contact_on_ || !pins_->directions.empty();
+  // contacts', the held nodes', the moving pins') is measured against it.
+  bool pins_drive = false;  // a pin moves in this step: its work is read off the reaction
+  for (size_t k = 0; k < pins_->nodes.size() && !pins_drive; ++k) {
+    pins_drive = pins_->targets[k] != Vec3(x.segment<3>(3 * pins_->nodes[k]));
+  }
+  const bool react = contact_on_ || !pins_->directions.empty() || pins_drive;
   if (react) rhs0_ = rhs_;
   if (contact_on_) {
     pins_move = contact_.prescribeChange(x, h, v, pinned_dv_);
