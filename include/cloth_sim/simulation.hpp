@@ -178,7 +178,7 @@ class Simulation {
   /// Whether a pin drifts at a velocity during the next step.
   bool pinsDrift() const;
   /// Work the pins did over a step from (x_save_, v_save_) to (x1, v1) (J).
-  double pinWork(const VecX& x1, const VecX& v1, double h, bool jumped);
+  double pinWork(const VecX& x1, const VecX& v1, double h, bool jumped, Method taken);
   // simulation_self.cpp
   /// The self-collision filter on the solved step x_save_ -> x_ (its time
   /// and figures into stats; a failure or a node pushed into a collider

@@ -24,6 +24,9 @@ struct PinnedEnds {
   std::vector<Vec3> directions;
   /// The pin's direction, or zero when its whole position is prescribed.
   Vec3 direction(size_t k) const { return directions.empty() ? Vec3::Zero() : directions[k]; }
+  /// The caller reads the moving pins' reaction after a linearized step
+  /// (their work): only then does a moving pin make the step compute it.
+  bool reaction_read = true;
 };
 
 /// The state before the step, for the multistep method (bdf2).

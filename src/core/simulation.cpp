@@ -141,7 +141,8 @@ double Simulation::energyScale() const {
   return measures_.kinetic + measures_.elastic + weight + 1e-12;
 }
 
-double Simulation::pinWork(const VecX& x1, const VecX& v1, double h, bool jumped) {
+double Simulation::pinWork(const VecX& x1, const VecX& v1, double h, bool jumped,
+                           Method taken) {
   // The pins' force times their travel (static pins do no work). After
   // implicit_euler's linearized step the force is its linear system's
   // reaction, A dv - rhs: read off f(x1, v1), a state the linearized answer
@@ -159,24 +160,32 @@ double Simulation::pinWork(const VecX& x1, const VecX& v1, double h, bool jumped
   // that nothing credits (docs/stability.md, "session 26"), which the
   // end-state reading happened to cover (the twist at stretch 1e5-1e8,
   // dt 0.1, failed with the system's reading where it passes).
-  if (!stepper_.linearizedReaction() || jumped || self_collision_.enabled()) {
+  // After a Newton solve (newton, bdf2, a refined step) the end state
+  // balances, and the solve's own reading, M (v1 - av) - b h f(x1, v1), is
+  // right for bdf2 too, whose momentum balance is not M (v1 - v0) / h (read
+  // that way, with its sign counted below, the fling hard case under bdf2
+  // rejected 358 steps; 43 with the solve's reading, 55 before either).
+  const bool solved = taken == Method::Newton || taken == Method::Bdf2;
+  double impulse_scale = 1.0;  // force_ holds the pins' forces times this (b h: impulses)
+  if (solved) {
+    stepper_.constraintImpulses(model_, x1, v1, &force_);
+    impulse_scale = stepper_.reactionScale();
+  } else if (!stepper_.linearizedReaction() || jumped || self_collision_.enabled()) {
     computeForces(model_, x1, v1, force_, stepper_.dampingAxes());
-    double work = 0.0;
     for (int node : pin_ends_.nodes) {
-      const Vec3 reaction =
+      force_.segment<3>(3 * node) =
           model_.mass[node] * (v1.segment<3>(3 * node) - v_save_.segment<3>(3 * node)) / h -
           force_.segment<3>(3 * node);
-      work += reaction.dot(x1.segment<3>(3 * node) - x_save_.segment<3>(3 * node));
     }
-    return work;
+  } else {
+    stepper_.constraintImpulses(model_, x1, v1, &force_);
+    impulse_scale = stepper_.reactionScale();
   }
-  stepper_.constraintImpulses(model_, x1, v1, &force_);
-  const double bh = stepper_.reactionScale();
   double work = 0.0;
   for (int node : pin_ends_.nodes) {
     work += force_.segment<3>(3 * node).dot(x1.segment<3>(3 * node) - x_save_.segment<3>(3 * node));
   }
-  return work / bh;
+  return work / impulse_scale;
 }
 
 StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
@@ -198,6 +207,8 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
     pins_move = pins_move || end != x_save_.segment<3>(3 * node);
     pins_jump = pins_jump || pin.position != x_save_.segment<3>(3 * node);
   }
+  // pinWork reads the linear system's reaction only here (see there).
+  pin_ends_.reaction_read = !pins_jump && !self_collision_.enabled();
   History history;
   if (has_prev_) history = History{&x_prev_, &v_prev_, h_prev_};
 
@@ -245,7 +256,9 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
   // held against, zones they dragged). The nodes the self-collision response
   // prescribes are not pins: their forces are internal (an inelastic stop
   // between two layers takes energy out), so nothing is credited for them.
-  const double work = self_pin_work + (stats.ok && pins_move ? pinWork(x_, v_, h, pins_jump) : 0.0);
+  const Method taken = as.value_or(scene_.solver.method);
+  const double work =
+      self_pin_work + (stats.ok && pins_move ? pinWork(x_, v_, h, pins_jump, taken) : 0.0);
   if (stats.ok && reject_linear && !stats.linear_converged) {
     stats.ok = false;
     stats.failure = "linear solver did not reach tolerance (relative residual " +
@@ -269,7 +282,12 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
     // more steps than the plain energy (extrapolating a turning stiff spring
     // stretches it). So bdf2 is held to the same per-step bound; a step that
     // fails it is retried as backward Euler (stepWithRecovery).
-    const double gain = after.total() - before.total() - std::max(work, 0.0) - contact_work;
+    // The pins' work counts with its sign: where the cloth pushes the pins
+    // back (a drag starting from rest, the stiff springs rebounding) its
+    // energy must fall by as much. Counted as zero, that let a gain through
+    // (the fling at stretch 1e6, dt 0.01: 4 sub-steps read -4.2e-3 J and the
+    // energy rose by 1.8e-2 J, the stability map's integrated check failed).
+    const double gain = after.total() - before.total() - work - contact_work;
     // Symplectic Euler's energy oscillates by design: for it the check only
     // catches a blow-up.
     // A step Newton solved to its tolerance has no inexact solve to forgive,
@@ -279,7 +297,6 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
     // friction is lagged across passes and steps (IPC's lagged friction),
     // an inexactness of its own (held to 1e-9, the stiffened cloth on a
     // table, contact hard case c4, took 134 rejected attempts where 72).
-    const Method taken = as.value_or(scene_.solver.method);
     const bool solved_tight = (taken == Method::Newton || taken == Method::Bdf2) &&
                               scene_.solver.newton_max_iterations > 1 &&
                               stats.newton_converged && !refining_ &&

@@ -205,7 +205,7 @@ StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v)
   // Without friction or prescribed columns: the constraints' reaction (the
   // contacts', the held nodes', the moving pins') is measured against it.
   bool pins_drive = false;  // a pin moves in this step: its work is read off the reaction
-  for (size_t k = 0; k < pins_->nodes.size() && !pins_drive; ++k) {
+  for (size_t k = 0; k < pins_->nodes.size() && !pins_drive && pins_->reaction_read; ++k) {
     pins_drive = pins_->targets[k] != Vec3(x.segment<3>(3 * pins_->nodes[k]));
   }
   const bool react = contact_on_ || !pins_->directions.empty() || pins_drive;
