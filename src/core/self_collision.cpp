@@ -114,7 +114,13 @@ Vec3 SelfCollision::nodeShare(int i, double w, const Vec3& dx, double room, bool
 }
 
 double SelfCollision::impulse(Pair& pair, const VecX& x0, VecX& x1, double* pin_work) const {
-  Vec3 rel1 = Vec3::Zero(), rel0 = Vec3::Zero();
+  Vec3 rel1 = Vec3::Zero();
+  for (int k = 0; k < 4; ++k) rel1 += pair.w[k] * x1.segment<3>(3 * pair.node[k]);
+  const double gap = pair.n.dot(rel1);
+  // Nothing applied yet and nothing to restore: the common case, decided
+  // before the rest is built (the folded towel at rest: most pairs a sweep).
+  if (!(gap < pair.target) && pair.normal_impulse == 0.0) return 0.0;
+  Vec3 rel0 = Vec3::Zero();
   // K: the relative position's displacement per impulse, sum w_k^2 / m_k
   // P_k, P_k the projector off node k's collider normal where the impulse
   // pushes the node into that surface and it has no room left there
@@ -125,7 +131,6 @@ double SelfCollision::impulse(Pair& pair, const VecX& x0, VecX& x1, double* pin_
   bool walls[4];
   for (int k = 0; k < 4; ++k) {
     const int i = pair.node[k];
-    rel1 += pair.w[k] * x1.segment<3>(3 * i);
     rel0 += pair.w[k] * x0.segment<3>(3 * i);
     rooms[k] = room(i, x1);
     walls[k] = pair.w[k] * pair.n.dot(normal_[i]) < 0.0 && rooms[k] == 0.0;
@@ -134,11 +139,8 @@ double SelfCollision::impulse(Pair& pair, const VecX& x0, VecX& x1, double* pin_
     K += (pair.w[k] * pair.w[k] * inv_mass_[i]) * P;
     reach = std::max(reach, (std::abs(pair.w[k]) * inv_mass_[i] * P * pair.n).norm());
   }
-  const double gap = pair.n.dot(rel1);
   const double denom = pair.n.dot(K * pair.n);
   if (!(denom > 0.0)) return 0.0;
-  // Nothing applied yet and nothing to restore: the common case.
-  if (!(gap < pair.target) && pair.normal_impulse == 0.0) return 0.0;
   // Where the movable nodes carry little of the closest points (the rest
   // pinned or held by a collider), closing the gap would throw them far
   // (the gap over their small weight): the impact zones handle that pair.
