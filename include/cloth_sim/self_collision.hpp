@@ -190,6 +190,7 @@ class SelfCollision {
   };
   std::vector<Hit> hits_;
   VecX x1_in_;
+  std::vector<Pair> close_;         ///< apply's close pairs (kept for its capacity)
   std::vector<int> sweep_nodes_;    ///< the nodes of the close pairs (sorted, unique)
   std::vector<Vec3> sweep_start_;   ///< their x1 at the start of a proximity sweep
 };

@@ -345,7 +345,8 @@ SelfCollisionResult SelfCollision::apply(const Model& model, double h, const Vec
   // 1. Proximity at the end of the step.
   hash_.findPairs(mesh_, x0, x1, thickness_, &pairs_);
   result.candidates = static_cast<int>(pairs_.point_triangle.size() + pairs_.edge_edge.size());
-  std::vector<Pair> close;
+  std::vector<Pair>& close = close_;
+  close.clear();
   std::array<Vec3, 4> at, start;
   auto consider = [&](int kind, int a, int b) {
     Pair pair;
