@@ -166,20 +166,19 @@ double Simulation::pinWork(const VecX& x1, const VecX& v1, double h, bool jumped
   // that way, with its sign counted below, the fling hard case under bdf2
   // rejected 358 steps; 43 with the solve's reading, 55 before either).
   const bool solved = taken == Method::Newton || taken == Method::Bdf2;
+  const bool linear_system =
+      stepper_.linearizedReaction() && !jumped && !self_collision_.enabled();
   double impulse_scale = 1.0;  // force_ holds the pins' forces times this (b h: impulses)
-  if (solved) {
+  if (solved || linear_system) {
     stepper_.constraintImpulses(model_, x1, v1, &force_);
     impulse_scale = stepper_.reactionScale();
-  } else if (!stepper_.linearizedReaction() || jumped || self_collision_.enabled()) {
+  } else {
     computeForces(model_, x1, v1, force_, stepper_.dampingAxes());
     for (int node : pin_ends_.nodes) {
       force_.segment<3>(3 * node) =
           model_.mass[node] * (v1.segment<3>(3 * node) - v_save_.segment<3>(3 * node)) / h -
           force_.segment<3>(3 * node);
     }
-  } else {
-    stepper_.constraintImpulses(model_, x1, v1, &force_);
-    impulse_scale = stepper_.reactionScale();
   }
   double work = 0.0;
   for (int node : pin_ends_.nodes) {
