@@ -143,28 +143,29 @@ double Simulation::energyScale() const {
 
 double Simulation::pinWork(const VecX& x1, const VecX& v1, double h, bool jumped,
                            Method taken) {
-  // The pins' force times their travel (static pins do no work). After
-  // implicit_euler's linearized step the force is its linear system's
-  // reaction, A dv - rhs: read off f(x1, v1), a state the linearized answer
-  // does not balance, it was off by more than the work itself (pins dragged
-  // at 10 m/s: a step that overstretched the cloth 42 % was accepted; the
-  // fold demo without self-collision refined 237 of 480 steps that gained
-  // nothing). After a Newton solve the end state balances:
-  // M (v1 - v0) / h - f(x1, v1). So after a pin jump (a teleport, the same
-  // travel at every step size): the linear system's springs then store
-  // what their tangents say, not what the jumped state holds, and no
-  // halving closes that gap (the pin-jump hard case at stretch 1e5-1e8
-  // failed where it passes), while the end-state reading credits the jumped
-  // node's own momentum change, the bulk of a teleport's work. And with
-  // self-collision: the nodes its response holds do work in the solve
-  // that nothing credits (docs/stability.md, "session 26"), which the
-  // end-state reading happened to cover (the twist at stretch 1e5-1e8,
-  // dt 0.1, failed with the system's reading where it passes).
-  // After a Newton solve (newton, bdf2, a refined step) the end state
-  // balances, and the solve's own reading, M (v1 - av) - b h f(x1, v1), is
-  // right for bdf2 too, whose momentum balance is not M (v1 - v0) / h (read
-  // that way, with its sign counted below, the fling hard case under bdf2
-  // rejected 358 steps; 43 with the solve's reading, 55 before either).
+  // The pins' force times their travel (static pins do no work), read from
+  // the solve that gave (x1, v1):
+  // - after a Newton solve (newton, bdf2, a refined step) the end state
+  //   balances, and the solve's own reaction M (v1 - av) - b h f(x1, v1)
+  //   is right for bdf2 too, whose momentum balance is not M (v1 - v0) / h
+  //   (read that way, with its sign counted, the fling hard case under bdf2
+  //   rejected 358 steps; 43 with the solve's reading, 55 before either);
+  // - after implicit_euler's linearized step, its linear system's reaction
+  //   A dv - rhs: read off f(x1, v1), a state the linearized answer does
+  //   not balance, it was off by more than the work itself (pins dragged at
+  //   10 m/s: a step that overstretched the cloth 42 % was accepted; the
+  //   fold demo without self-collision refined 237 of 480 steps that gained
+  //   nothing);
+  // - but the end state, M (v1 - v0) / h - f(x1, v1), after a linearized
+  //   step in which a pin jumped (a teleport, the same travel at every step
+  //   size: the linear system's springs store what their tangents say, not
+  //   what the jumped state holds, and no halving closes that gap, so the
+  //   pin-jump hard case failed at stretch 1e5-1e8; the end state credits
+  //   the jumped node's own momentum change, the bulk of a teleport's
+  //   work), and with self-collision (the nodes its response holds do work
+  //   in the solve that nothing credits, docs/stability.md, "session 26",
+  //   which the end-state reading happened to cover: with the system's
+  //   reading the twist failed at stretch 1e5-1e8, dt 0.1).
   const bool solved = taken == Method::Newton || taken == Method::Bdf2;
   const bool linear_system =
       stepper_.linearizedReaction() && !jumped && !self_collision_.enabled();
