@@ -177,8 +177,10 @@ class Simulation {
   bool pinsJump() const;
   /// Whether a pin drifts at a velocity during the next step.
   bool pinsDrift() const;
-  /// Work the pins did over a step from (x_save_, v_save_) to (x1, v1) (J).
-  double pinWork(const VecX& x1, const VecX& v1, double h, bool jumped, Method taken);
+  /// Work the pins did over a step from (x_save_, v_save_) to (x1, v1) (J),
+  /// solved by `taken`; pin_ends_.reaction_read says whether a linearized
+  /// step's own reaction may be read.
+  double pinWork(const VecX& x1, const VecX& v1, double h, Method taken);
   // simulation_self.cpp
   /// The self-collision filter on the solved step x_save_ -> x_ (its time
   /// and figures into stats; a failure or a node pushed into a collider

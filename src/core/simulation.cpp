@@ -141,8 +141,7 @@ double Simulation::energyScale() const {
   return measures_.kinetic + measures_.elastic + weight + 1e-12;
 }
 
-double Simulation::pinWork(const VecX& x1, const VecX& v1, double h, bool jumped,
-                           Method taken) {
+double Simulation::pinWork(const VecX& x1, const VecX& v1, double h, Method taken) {
   // The pins' force times their travel (static pins do no work), read from
   // the solve that gave (x1, v1):
   // - after a Newton solve (newton, bdf2, a refined step) the end state
@@ -167,8 +166,7 @@ double Simulation::pinWork(const VecX& x1, const VecX& v1, double h, bool jumped
   //   which the end-state reading happened to cover: with the system's
   //   reading the twist failed at stretch 1e5-1e8, dt 0.1).
   const bool solved = taken == Method::Newton || taken == Method::Bdf2;
-  const bool linear_system =
-      stepper_.linearizedReaction() && !jumped && !self_collision_.enabled();
+  const bool linear_system = stepper_.linearizedReaction() && pin_ends_.reaction_read;
   double impulse_scale = 1.0;  // force_ holds the pins' forces times this (b h: impulses)
   if (solved || linear_system) {
     stepper_.constraintImpulses(model_, x1, v1, &force_);
@@ -207,7 +205,8 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
     pins_move = pins_move || end != x_save_.segment<3>(3 * node);
     pins_jump = pins_jump || pin.position != x_save_.segment<3>(3 * node);
   }
-  // pinWork reads the linear system's reaction only here (see there).
+  // pinWork reads a linearized step's own reaction only without a jump or
+  // self-collision (see there); the stepper computes it only then.
   pin_ends_.reaction_read = !pins_jump && !self_collision_.enabled();
   History history;
   if (has_prev_) history = History{&x_prev_, &v_prev_, h_prev_};
@@ -258,7 +257,7 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
   // between two layers takes energy out), so nothing is credited for them.
   const Method taken = as.value_or(scene_.solver.method);
   const double work =
-      self_pin_work + (stats.ok && pins_move ? pinWork(x_, v_, h, pins_jump, taken) : 0.0);
+      self_pin_work + (stats.ok && pins_move ? pinWork(x_, v_, h, taken) : 0.0);
   if (stats.ok && reject_linear && !stats.linear_converged) {
     stats.ok = false;
     stats.failure = "linear solver did not reach tolerance (relative residual " +
