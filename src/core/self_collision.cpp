@@ -345,8 +345,7 @@ SelfCollisionResult SelfCollision::apply(const Model& model, double h, const Vec
   // 1. Proximity at the end of the step.
   hash_.findPairs(mesh_, x0, x1, thickness_, &pairs_);
   result.candidates = static_cast<int>(pairs_.point_triangle.size() + pairs_.edge_edge.size());
-  std::vector<Pair>& close = close_;
-  close.clear();
+  close_.clear();
   std::array<Vec3, 4> at, start;
   auto consider = [&](int kind, int a, int b) {
     Pair pair;
@@ -362,7 +361,7 @@ SelfCollisionResult SelfCollision::apply(const Model& model, double h, const Vec
     // Stop the approach; restore up to the thickness, never push beyond
     // where the pair started (no energy put in).
     pair.target = std::min(thickness_, g0);
-    close.push_back(pair);
+    close_.push_back(pair);
   };
   for (const auto& [node, tri] : pairs_.point_triangle) consider(0, node, tri);
   for (const auto& [ea, eb] : pairs_.edge_edge) consider(1, ea, eb);
@@ -372,14 +371,14 @@ SelfCollisionResult SelfCollision::apply(const Model& model, double h, const Vec
   // (by up to half its correction); the sweeps take that back.
   // Only the nodes of close pairs move: the sweeps' stop looks at those.
   sweep_nodes_.clear();
-  for (const Pair& pair : close) sweep_nodes_.insert(sweep_nodes_.end(), pair.node, pair.node + 4);
+  for (const Pair& pair : close_) sweep_nodes_.insert(sweep_nodes_.end(), pair.node, pair.node + 4);
   std::sort(sweep_nodes_.begin(), sweep_nodes_.end());
   sweep_nodes_.erase(std::unique(sweep_nodes_.begin(), sweep_nodes_.end()), sweep_nodes_.end());
   sweep_start_.resize(sweep_nodes_.size());
-  for (int sweep = 0; sweep < kProximitySweeps && !close.empty(); ++sweep) {
+  for (int sweep = 0; sweep < kProximitySweeps && !close_.empty(); ++sweep) {
     for (size_t k = 0; k < sweep_nodes_.size(); ++k) sweep_start_[k] = x1.segment<3>(3 * sweep_nodes_[k]);
     ++result.proximity_sweeps;
-    for (Pair& pair : close) {
+    for (Pair& pair : close_) {
       const double change = impulse(pair, x0, x1, &pin_work);
       if (sweep == 0) result.proximity_impulses += change > 0.0;
     }
