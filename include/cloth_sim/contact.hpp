@@ -136,6 +136,12 @@ class ContactSet {
                       const Vec3& gravity, double solve_tolerance);
   /// What the last update changed.
   const ContactChanges& lastChanges() const { return changes_; }
+  /// Contacts back after their release in this step (held) that stuck and
+  /// pulled in the last update.
+  int heldPulls() const { return held_pulls_; }
+  /// From now on a held contact that pulls slides (its friction cone is
+  /// empty) instead of sticking; off by default (see update).
+  void setSlideHeldPulls(bool on) { slide_held_pulls_ = on; }
   /// Why the last update failed.
   const std::string& failure() const { return failure_; }
 
@@ -209,6 +215,8 @@ class ContactSet {
   std::vector<int> slot_;  ///< per node: index in nodes_, -1 if not in contact
   std::vector<int> released_;  ///< nodes released this step (cycling guard)
   int passes_ = 0;             ///< updates this step
+  int held_pulls_ = 0;         ///< heldPulls()
+  bool slide_held_pulls_ = false;
   ContactChanges changes_;
   double h_ = 0.0;
   double max_penetration_ = 0.0;

@@ -75,6 +75,9 @@ class Stepper {
   }
   /// Contacts of the last step.
   const ContactSet& contacts() const { return contact_; }
+  /// ContactSet::setSlideHeldPulls: the recovery's retry of a step that
+  /// gained energy with held contacts pulling.
+  void setSlideHeldPulls(bool on) { contact_.setSlideHeldPulls(on); }
   /// Forgets the contact state (reset, or colliders changed).
   void clearContacts() { contact_.clear(); }
   /// After an implicit step whose pins have directions (or any newton/bdf2

@@ -5,6 +5,7 @@
 
 #include <cmath>
 
+#include "cloth_sim/contact.hpp"
 #include "cloth_sim/simulation.hpp"
 #include "scene_builders.hpp"
 
@@ -354,6 +355,76 @@ TEST(Contact, ResetRestoresColliders) {
   EXPECT_FALSE(sim.moveCollider("floor", Vec3(NAN, 0, 0)).ok);
   sim.reset();
   EXPECT_EQ(sim.colliderState(0).pose.translation, Vec3::Zero());
+}
+
+// A node let go because it pulled, and found inside the band again in a
+// later pass of the same step, is kept for the rest of the step (no
+// cycling). Where it then pulls, its friction cone is empty: on the
+// recovery's retry it slides. Kept sticking, the contact pulled a stiffened cloth's node onto a table's
+// edge against its springs (c4 at newton, dt 0.1: 1.5e-3 J gained at every
+// halving).
+TEST(ContactSetPasses, ANodeBackAfterItsReleaseIsHeldAndSlidesWhereItPullsOnARetry) {
+  const std::vector<Collider> colliders = {Collider::fromParams(floorPlane(0.5), 0.5)};
+  CollidersOverStep over;
+  over.colliders = &colliders;
+  over.start = over.end = {Pose{}};
+  over.thickness = kThickness;
+  const ConstraintFilter pins(std::vector<char>{1});
+  const std::vector<double> mass = {1.0};
+  const double h = 0.01;
+  const Vec3 gravity(0.0, 0.0, -kG);
+  ContactSet contacts;
+  contacts.setGrid(1, 1);
+  const VecX x0 = Vec3(0.0, 0.0, kThickness + 1e-3);
+  const VecX v0 = Vec3(0.1, 0.0, -1.0);  // lands within the step: a contact
+  contacts.begin(over, pins, x0, v0, gravity, h);
+  ASSERT_TRUE(contacts.holds(0));
+  auto filterOf = [&] {
+    ConstraintFilter f = pins;
+    contacts.constrain(f);
+    return f.projector(0);
+  };
+  EXPECT_TRUE(filterOf().isZero()) << "a new contact sticks";
+  const VecX on_band = Vec3(0.0, 0.0, kThickness);
+  const VecX v1 = (on_band - x0) / h;
+  // Pass 1: it sticks and pulls, sideways too: outside the (empty) cone, it slides.
+  const VecX pull = h * Vec3(1.0, 0.0, -5.0);
+  EXPECT_EQ(contacts.update(over, pins, mass, x0, on_band, v1, pull, h, gravity, 1e-8),
+            ContactCheck::Changed);
+  EXPECT_EQ(contacts.lastChanges().slid, 1);
+  // Pass 2: sliding, it still pulls: let go (its end a hair above the band).
+  const VecX above = Vec3(0.0, 0.0, kThickness + 1e-7);
+  EXPECT_EQ(contacts.update(over, pins, mass, x0, above, (above - x0) / h, pull, h, gravity, 1e-8),
+            ContactCheck::Changed);
+  EXPECT_EQ(contacts.lastChanges().released, 1);
+  EXPECT_FALSE(contacts.holds(0));
+  // Pass 3: free, it ends inside the band: back, and held (new, it sticks).
+  const VecX below = Vec3(0.001, 0.0, kThickness - 1e-6);
+  EXPECT_EQ(contacts.update(over, pins, mass, x0, below, (below - x0) / h, VecX::Zero(3), h,
+                            gravity, 1e-8),
+            ContactCheck::Changed);
+  ASSERT_TRUE(contacts.holds(0));
+  EXPECT_TRUE(filterOf().isZero());
+  // Pass 4, past the friction passes: held, it pulls again. It is not let
+  // go, and by default it keeps sticking (counted: the recovery's cue).
+  EXPECT_EQ(contacts.update(over, pins, mass, x0, on_band, v1, pull, h, gravity, 1e-8),
+            ContactCheck::Consistent);
+  EXPECT_EQ(contacts.heldPulls(), 1);
+  ASSERT_TRUE(contacts.holds(0));
+  EXPECT_TRUE(filterOf().isZero());
+  // Pass 5, as the recovery retries a step that gained energy: it slides
+  // (the filter keeps its tangent plane).
+  contacts.setSlideHeldPulls(true);
+  EXPECT_EQ(contacts.update(over, pins, mass, x0, on_band, v1, pull, h, gravity, 1e-8),
+            ContactCheck::Changed);
+  EXPECT_EQ(contacts.lastChanges().slid, 1);
+  ASSERT_TRUE(contacts.holds(0));
+  const Mat3 tangent = Mat3::Identity() - Vec3::UnitZ() * Vec3::UnitZ().transpose();
+  EXPECT_LT((filterOf() - tangent).norm(), 1e-12) << filterOf();
+  // Pass 6: sliding and held, however it pulls: nothing changes.
+  EXPECT_EQ(contacts.update(over, pins, mass, x0, on_band, v1, pull, h, gravity, 1e-8),
+            ContactCheck::Consistent);
+  EXPECT_TRUE(contacts.holds(0));
 }
 
 }  // namespace
