@@ -360,9 +360,9 @@ TEST(Contact, ResetRestoresColliders) {
 // A node let go because it pulled, and found inside the band again in a
 // later pass of the same step, is kept for the rest of the step (no
 // cycling). Where it then pulls, its friction cone is empty: on the
-// recovery's retry it slides. Kept sticking, the contact pulled a stiffened cloth's node onto a table's
-// edge against its springs (c4 at newton, dt 0.1: 1.5e-3 J gained at every
-// halving).
+// recovery's retry it slides. Kept sticking, the contact pulled a stiffened
+// cloth's node onto a table's edge against its springs (c4 at newton, dt
+// 0.1: 1.5e-3 J gained at every halving).
 TEST(ContactSetPasses, ANodeBackAfterItsReleaseIsHeldAndSlidesWhereItPullsOnARetry) {
   const std::vector<Collider> colliders = {Collider::fromParams(floorPlane(0.5), 0.5)};
   CollidersOverStep over;
