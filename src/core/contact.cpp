@@ -364,11 +364,11 @@ ContactCheck ContactSet::update(const CollidersOverStep& colliders, const Constr
     // A node back after its release this step is kept (no cycling), and
     // may then pull. On the last retry of a step that gained energy (at the
     // deepest halving) such a node slides: where it pulls its friction cone
-    // is empty. Kept sticking, it
-    // pulled a stiffened cloth's node onto a table's edge against its
-    // springs (contact hard case c4 at newton, dt 0.1: 483 N, 1.5e-3 J
-    // gained at every halving). Not always: the fold and the heap, whose
-    // held nodes pull too, rest less well then (Simulation::stepWithRecovery).
+    // is empty. Kept sticking, it pulled a stiffened cloth's node onto a
+    // table's edge against its springs (contact hard case c4 at newton, dt
+    // 0.1: 483 N, 1.5e-3 J gained at every halving). Only then: sliding in
+    // every step, the fold, the heap and a drop onto a rod rested less well
+    // (Simulation::stepWithRecovery).
     if (c.held && c.sticking && lambda[weakest] < -pull_tolerance) {
       ++held_pulls_;
       if (slide_held_pulls_) {
