@@ -37,7 +37,10 @@ struct EnergyParts {
   double elastic = 0.0;
   double potential = 0.0;   ///< -sum m g.x
   double max_strain = 0.0;  ///< max |d|/L - 1 (0 without springs)
-  double total() const { return kinetic + elastic + potential; }
+  /// self-repulsion's (self_repulsion.hpp): not measureEnergy's, the
+  /// simulation adds it (Simulation::repulsionEnergy)
+  double repulsion = 0.0;
+  double total() const { return kinetic + elastic + potential + repulsion; }
 };
 EnergyParts measureEnergy(const Model& model, const VecX& x, const VecX& v);
 

@@ -26,6 +26,7 @@
 
 #include "cloth_sim/model.hpp"
 #include "cloth_sim/scene.hpp"
+#include "cloth_sim/self_repulsion.hpp"
 #include "cloth_sim/spatial_hash.hpp"
 
 namespace cloth_sim {
@@ -97,6 +98,12 @@ class SelfCollision {
   SelfCollision() = default;
   SelfCollision(const Model& model, const Scene::SelfCollision& params);
   bool enabled() const { return enabled_; }
+  /// The filter's proximity stage acts on pairs closer than this fraction of
+  /// the thickness (1 by default). With self-repulsion inside the solve
+  /// (self_repulsion.hpp) keeping resting layers at the thickness, the
+  /// simulation sets it below 1: the filter is then the fail-safe for what
+  /// the solve let through, not a second push on every resting pair.
+  void setProximity(double fraction) { proximity_ = fraction; }
 
   /// Inputs: the step's length h, its start x0 (3n) and solved end x1 (3n),
   /// v the solved end velocity, `masses`. Output: x1 and v filtered as above
@@ -112,6 +119,20 @@ class SelfCollision {
   /// Distance and closeness of every candidate pair at positions x (for the
   /// final report; also the tests' proximity measure).
   void measure(const VecX& x, SelfCollisionResult* result);
+
+  /// The repulsion terms of a step from x0 (self_repulsion.hpp), x1 a
+  /// prediction of its end (x0 + h v0): per node, the nearest triangle (not
+  /// its own) whose gap is below `reach` at x0 or, along the normal at x0,
+  /// at x1, and the nearest on the node's other side (a node between two
+  /// layers). Weights and normal are the closest points' at x0; the
+  /// stiffness is `scale` times the pair's effective mass 1 / sum_k w_k^2 / m_k
+  /// (scale c / h^2: c times as stiff as its nodes' inertia over the step);
+  /// active where the gap at x0 is below the reach. Point-triangle pairs only:
+  /// edge-edge pairs add little between layers (every node is a point over
+  /// the other layer) and cost several terms a node in every product.
+  /// Replaces out's terms.
+  void repulsionTerms(const Model& model, const VecX& x0, const VecX& x1, double reach,
+                      double scale, SelfRepulsion* out);
 
   const CollisionMesh& mesh() const { return mesh_; }
 
@@ -152,6 +173,7 @@ class SelfCollision {
   double thickness_ = 0.0;
   double friction_ = 0.0;
   double separation_ = 0.0;  ///< CCD's minimum separation
+  double proximity_ = 1.0;   ///< setProximity's
   CollisionMesh mesh_;
   SpatialHash hash_;
   CandidatePairs pairs_;
@@ -193,6 +215,8 @@ class SelfCollision {
   std::vector<Pair> close_;         ///< apply's close pairs (kept for its capacity)
   std::vector<int> sweep_nodes_;    ///< the nodes of the close pairs (sorted, unique)
   std::vector<Vec3> sweep_start_;   ///< their x1 at the start of a proximity sweep
+  /// repulsionTerms': per node, its terms on either side (-1: none yet)
+  std::vector<std::array<int, 2>> node_terms_;
 };
 
 }  // namespace cloth_sim

@@ -10,6 +10,7 @@
 #include "cloth_sim/linear_solver.hpp"
 #include "cloth_sim/model.hpp"
 #include "cloth_sim/scene.hpp"
+#include "cloth_sim/self_repulsion.hpp"
 #include "cloth_sim/step_stats.hpp"
 
 namespace cloth_sim {
@@ -73,6 +74,14 @@ class Stepper {
     energy_stop_ = std::move(accept);
     energy_stop_decrement_ = decrement;
   }
+  /// Self-repulsion terms the implicit steppers add to their forces, matrix
+  /// and incremental potential (null: none). The caller owns them and keeps
+  /// them over the step; implicit_euler solves again while its answer
+  /// changes their active set (SelfRepulsion::updateActiveSet).
+  void setRepulsion(SelfRepulsion* repulsion) { repulsion_ = repulsion; }
+  /// f(x, v): the model's forces (computeForces) plus the repulsion's.
+  void forces(const Model& model, const VecX& x, const VecX& v, VecX& f,
+              const std::vector<Vec3>* damping_axes = nullptr) const;
   /// Contacts of the last step.
   const ContactSet& contacts() const { return contact_; }
   /// ContactSet::setSlideHeldPulls: the recovery's retry of a step that
@@ -138,6 +147,10 @@ class Stepper {
   double incrementalPotential(const Model& model, double bh, const VecX& av, const VecX& v1,
                               const VecX& x1) const;
   StepStats symplecticEuler(const Model& model, double h, VecX& x, VecX& v);
+  /// assembleSystem plus the repulsion's terms (SelfRepulsion::addToSystem).
+  void assemble(const Model& model, const VecX& x, const VecX& v, double a, double b,
+                const VecX* w, VecX* dfdx_w, const std::vector<Vec3>* damping_axes,
+                bool linearized);
   void setPins(const Model& model, const PinnedEnds& pins);
   /// CG on A_ x = b (x: warm start and answer) with the scene's solver settings.
   /// CG on A x = b to `tolerance` (relative; 0: solver.tolerance).
@@ -152,12 +165,14 @@ class Stepper {
   Scene::Solver settings_;
   Preconditioner preconditioner_ = Preconditioner::BlockJacobi;  ///< this step's (auto resolved)
   AutoPreconditioner auto_;  ///< `auto`'s choice across steps
-  ConstraintFilter filter_;  ///< pins (eliminated) and contacts (projected)
+  SelfRepulsion* repulsion_ = nullptr;  ///< setRepulsion's
+    ConstraintFilter filter_;  ///< pins (eliminated) and contacts (projected)
   ContactSet contact_;
   bool contact_on_ = false;  ///< this step has colliders
   double bh_ = 0.0;          ///< the last solve's b h (reaction scale)
   bool linearized_ = false;  ///< the last solve was implicitEuler's: reaction_ is A dv - rhs0_
   VecX x0_, v0_, reaction_, rhs0_;
+  VecX x_repulsed_, v_repulsed_;  ///< implicit_euler's start, for a solve again without separated terms
   const PinnedEnds* pins_ = nullptr;
   SystemMatrix A_;
   CgWorkspace cg_;

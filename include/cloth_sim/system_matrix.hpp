@@ -17,6 +17,7 @@
 // 3.1 (docs/profile.md).
 #pragma once
 
+#include <array>
 #include <memory>
 #include <utility>
 #include <vector>
@@ -79,6 +80,27 @@ class SystemMatrix {
     changed();
   }
   const std::vector<std::pair<int, SymBlock>>& nodeBlocks() const { return node_blocks_; }
+  /// A coupling (w w^T) (x) B over four nodes, B symmetric 3x3 (a self
+  /// repulsion term, self_repulsion.hpp: B = c n n^T along its normal plus
+  /// its friction's c_t (I - n n^T)): beyond the spring list, kept until
+  /// reset(). Products apply it whole; the preconditioners see only its node
+  /// blocks w_k^2 B (fullDiagonal), which keeps them SPD and their patterns
+  /// fixed.
+  struct PairTerm {
+    std::array<int, 4> node;
+    std::array<double, 4> w;
+    SymBlock B;
+    SymBlock diagonal(int k) const {
+      SymBlock d;
+      d.addScaled(w[k] * w[k], B);
+      return d;
+    }
+  };
+  void addPairTerm(const PairTerm& term) {
+    pair_terms_.push_back(term);
+    changed();
+  }
+  const std::vector<PairTerm>& pairTerms() const { return pair_terms_; }
   /// Node block without the couplings: nodeScale(i) * I.
   double nodeScale(int node) const { return node_scale_[node]; }
   Mat3 diag(int node) const { return node_scale_[node] * Mat3::Identity(); }
@@ -125,6 +147,9 @@ class SystemMatrix {
   std::vector<Coefficients> coefficients_;  ///< per direction of the layout
   bool has_damping_axes_ = false;
   std::vector<std::pair<int, SymBlock>> node_blocks_;  ///< extra node blocks (addNodeBlock)
+  std::vector<PairTerm> pair_terms_;                   ///< addPairTerm's
+  /// ys += the pair terms' product (split vectors), in double precision.
+  void multiplyPairTerms(const double* xs, double* ys) const;
   mutable std::vector<SymBlock> full_diag_;
   mutable bool full_diag_valid_ = false;
   /// Work arrays of the product and the diagonal: by component, each

@@ -284,6 +284,11 @@ void MultigridPreconditioner::fillFinest(const SystemMatrix& A, const std::vecto
   for (const auto& [node, block] : A.nodeBlocks()) {
     if (level.free[node]) level.node_block[node].addScaled(1.0, block);
   }
+  for (const SystemMatrix::PairTerm& t : A.pairTerms()) {
+    for (int k = 0; k < 4; ++k) {
+      if (level.free[t.node[k]]) level.node_block[t.node[k]].addScaled(1.0, t.diagonal(k));
+    }
+  }
   std::fill(level.lower_block.begin(), level.lower_block.end(), SymBlock());
   const std::vector<char>& free = level.free;
   for (size_t k = 0; k < springs.size(); ++k) {

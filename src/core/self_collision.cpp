@@ -343,7 +343,8 @@ SelfCollisionResult SelfCollision::apply(const Model& model, double h, const Vec
   x1_in_ = x1;
 
   // 1. Proximity at the end of the step.
-  hash_.findPairs(mesh_, x0, x1, thickness_, &pairs_);
+  const double proximity = proximity_ * thickness_;
+  hash_.findPairs(mesh_, x0, x1, proximity, &pairs_);
   result.candidates = static_cast<int>(pairs_.point_triangle.size() + pairs_.edge_edge.size());
   close_.clear();
   std::array<Vec3, 4> at, start;
@@ -351,7 +352,7 @@ SelfCollisionResult SelfCollision::apply(const Model& model, double h, const Vec
     Pair pair;
     gather(nodesOf(kind, a, b), x1, &at);
     makePair(kind, a, b, at, &pair);
-    if (!(pair.distance < thickness_)) return;
+    if (!(pair.distance < proximity)) return;
     gather(nodesOf(kind, a, b), x0, &start);
     Vec3 rel0 = Vec3::Zero();
     for (int k = 0; k < 4; ++k) rel0 += pair.w[k] * start[k];
@@ -360,7 +361,7 @@ SelfCollisionResult SelfCollision::apply(const Model& model, double h, const Vec
     if (!(g0 > 0.0)) return;
     // Stop the approach; restore up to the thickness, never push beyond
     // where the pair started (no energy put in).
-    pair.target = std::min(thickness_, g0);
+    pair.target = std::min(proximity, g0);
     close_.push_back(pair);
   };
   for (const auto& [node, tri] : pairs_.point_triangle) consider(0, node, tri);
@@ -447,6 +448,51 @@ SelfCollisionResult SelfCollision::apply(const Model& model, double h, const Vec
   }
   result.pin_work = pin_work / (h * h);
   return result;
+}
+
+void SelfCollision::repulsionTerms(const Model& model, const VecX& x0, const VecX& x1,
+                                   double reach, double scale, SelfRepulsion* out) {
+  out->clear();
+  hash_.findPairs(mesh_, x0, x1, reach, &pairs_);
+  node_terms_.assign(model.numNodes(), {-1, -1});
+  std::array<Vec3, 4> at;
+  Pair pair;
+  RepulsionTerm term;
+  for (const auto& [node, tri] : pairs_.point_triangle) {
+    gather(nodesOf(0, node, tri), x0, &at);
+    makePair(0, node, tri, at, &pair);
+    // Touching pairs have no closest-point direction to push along (the
+    // filter's business).
+    if (pair.distance <= 1e-6 * thickness_) continue;
+    term.active = pair.distance < reach;
+    if (!term.active) {
+      for (int k = 0; k < 4; ++k) term.node[k] = pair.node[k], term.w[k] = pair.w[k];
+      term.n = pair.n;
+      if (!(term.gap(x1) < reach)) continue;
+    }
+    // The node's nearest on this side, or on its other one.
+    std::array<int, 2>& slots = node_terms_[node];
+    int slot = 0;
+    if (slots[0] >= 0 && out->terms()[slots[0]].n.dot(pair.n) < 0.0) slot = 1;
+    const int held = slots[slot];
+    if (held >= 0 && !(pair.distance < out->terms()[held].gap(x0))) continue;
+    double inverse_mass = 0.0;
+    for (int k = 0; k < 4; ++k) {
+      term.node[k] = pair.node[k];
+      term.w[k] = pair.w[k];
+      inverse_mass += pair.w[k] * pair.w[k] / model.mass[pair.node[k]];
+    }
+    term.n = pair.n;
+    term.stiffness = scale / inverse_mass;
+    term.reach = reach;
+    term.friction = friction_ * term.stiffness * std::max(reach - pair.distance, 0.0);
+    if (held >= 0) {
+      out->replace(held, term);
+    } else {
+      slots[slot] = out->size();
+      out->add(term);
+    }
+  }
 }
 
 void SelfCollision::measure(const VecX& x, SelfCollisionResult* result) {

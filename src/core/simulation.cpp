@@ -73,9 +73,8 @@ void Simulation::reset() {
   step_count_ = 0;
   next_event_ = 0;
   work_in_total_ = 0.0;
-  measures_ = measureEnergy(model_, x_, v_);
+  measures_ = measureEnergy(model_, x_, v_);  // the repulsion's once self-collision is set up
   last_stats_ = StepStats();
-  last_stats_.energy = measures_.total();
   last_stats_.max_strain = measures_.max_strain;
   stepper_ = Stepper(scene_.solver);
   colliders_.clear();
@@ -88,6 +87,8 @@ void Simulation::reset() {
   collider_step_.thickness = scene_.contact.thickness;
   max_penetration_ = 0.0;
   self_collision_ = SelfCollision(model_, scene_.self_collision);
+  measures_.repulsion = repulsionEnergy(x_);
+  last_stats_.energy = measures_.total();
   min_self_distance_ = std::numeric_limits<double>::infinity();
   pins_.clear();
   for (int p : scene_.pins) pins_[p] = PinTarget{position(p), Vec3::Zero(), 0.0};
@@ -172,7 +173,7 @@ double Simulation::pinWork(const VecX& x1, const VecX& v1, double h, Method take
     stepper_.constraintImpulses(model_, x1, v1, &force_);
     impulse_scale = stepper_.reactionScale();
   } else {
-    computeForces(model_, x1, v1, force_, stepper_.dampingAxes());
+    stepper_.forces(model_, x1, v1, force_, stepper_.dampingAxes());
     for (int node : pin_ends_.nodes) {
       force_.segment<3>(3 * node) =
           model_.mass[node] * (v1.segment<3>(3 * node) - v_save_.segment<3>(3 * node)) / h -
@@ -222,6 +223,47 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
     colliders_move = colliders_move || drift * c.velocity.squaredNorm() > 0.0;
   }
 
+  // Self-repulsion inside the solve (self_repulsion.hpp): pairs closer than
+  // kRepulsionReach thicknesses at the step's start, or predicted to come
+  // so close, push apart with a stiffness kRepulsionStiffness times their
+  // inertia over a scene step. Their energy is part of the energy check as
+  // a function of the positions alone (repulsionEnergy: the terms built
+  // there, measured there), so a step's start holds what the last one's end
+  // did. Measured with the step's frozen terms at the end and built anew at
+  // the start, a pair that came within the reach unpredicted was a term
+  // only at the next step's start: its energy was credited there and
+  // released as motion, which no halving shrank (a folded cloth dropped on
+  // a table under bdf2: 4.8e-5 J at dt / 256).
+  const Method taken = as.value_or(scene_.solver.method);
+  double repulsion_before = 0.0;
+  // implicit_euler scenes only (their refined Newton steps too): in newton
+  // and bdf2 scenes, whose every step is a Newton solve, the terms' clamp
+  // and friction's stiff smoothing stalled it (the twisted cloth, hard case
+  // s4, under bdf2: not done in 400 s where 19 s without; under newton it
+  // failed at t = 0.9 s). There the filter acts at the whole thickness.
+  const bool repulsed = self_collision_.enabled() && taken != Method::SymplecticEuler &&
+                        scene_.solver.method == Method::ImplicitEuler;
+  self_collision_.setProximity(repulsed ? kSelfProximity : 1.0);
+  if (repulsed) {
+    const double reach = kRepulsionReach * scene_.self_collision.thickness;
+    // The stiffness is the scene's step's, not this attempt's: k ~ 1 / h^2
+    // of a halved step made the halvings stiffer, the energy a pair held at
+    // the start grew with each, and a dropped folded cloth under newton
+    // failed (1.1 J gained at dt / 256).
+    const double dt = scene_.solver.dt;
+    x_predicted_ = x_save_ + h * v_save_;  // where pairs may come close
+    self_collision_.repulsionTerms(model_, x_save_, x_predicted_, reach,
+                                   kRepulsionStiffness / (dt * dt), &repulsion_);
+    repulsion_before = repulsionEnergy(x_save_);
+    stepper_.setRepulsion(&repulsion_);
+  } else {
+    repulsion_.clear();
+    stepper_.setRepulsion(nullptr);
+  }
+  // The start's as this attempt measures it (its terms' stiffness follows
+  // the scene's dt, which a retune may have changed).
+  const double before_total = before.total() - before.repulsion + repulsion_before;
+
   if (refining_ && !pins_move && !colliders_move) {
     // A refined step is held to the energy check, not to a Newton tolerance:
     // Newton stops at the first iterate that passes it once its decrement is
@@ -234,8 +276,9 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
     // the stiffened cloth on a table (contact hard case c4) rejected 53
     // attempts where 154 when these ran Newton to its tolerance.
     stepper_.setEnergyStop(
-        [this, before](const VecX& x1, const VecX& v1) {
-          const double gain = measureEnergy(model_, x1, v1).total() - before.total();
+        [this, before_total](const VecX& x1, const VecX& v1) {
+          const double gain =
+              measureEnergy(model_, x1, v1).total() + repulsion_.energy(x1) - before_total;
           return gain <= 0.0;  // not even the check's round-off allowance
         },
         kRefineAcceptDecrement * scale);
@@ -255,7 +298,6 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
   // held against, zones they dragged). The nodes the self-collision response
   // prescribes are not pins: their forces are internal (an inelastic stop
   // between two layers takes energy out), so nothing is credited for them.
-  const Method taken = as.value_or(scene_.solver.method);
   const double work =
       self_pin_work + (stats.ok && pins_move ? pinWork(x_, v_, h, taken) : 0.0);
   if (stats.ok && reject_linear && !stats.linear_converged) {
@@ -286,7 +328,8 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
     // energy must fall by as much. Counted as zero, that let a gain through
     // (the fling at stretch 1e6, dt 0.01: 4 sub-steps read -4.2e-3 J and the
     // energy rose by 1.8e-2 J, the stability map's integrated check failed).
-    const double gain = after.total() - before.total() - work - contact_work;
+    after.repulsion = repulsed ? repulsionEnergy(x_) : 0.0;
+    const double gain = after.total() - before_total - work - contact_work;
     // Symplectic Euler's energy oscillates by design: for it the check only
     // catches a blow-up.
     // A step Newton solved to its tolerance has no inexact solve to forgive,
@@ -536,6 +579,7 @@ Status Simulation::setStiffness(const std::string& spring_type, double stiffness
     if (damping != -1.0) g.damping = damping;
   }
   measures_ = measureEnergy(model_, x_, v_);
+  measures_.repulsion = repulsionEnergy(x_);
   return Status::success("set " + spring_type + " stiffness to " + fmt(stiffness));
 }
 
@@ -605,6 +649,7 @@ Status Simulation::retune(const Tuning& tuning) {
     resetStepControl();
   }
   measures_ = measureEnergy(model_, x_, v_);
+  measures_.repulsion = repulsionEnergy(x_);
   return Status::success();
 }
 

@@ -38,6 +38,7 @@ void Simulation::restoreCheckpoint() {
   max_penetration_ = checkpoint_.max_penetration;
   min_self_distance_ = checkpoint_.min_self_distance;
   measures_ = measureEnergy(model_, x_, v_);
+  measures_.repulsion = repulsionEnergy(x_);
 }
 
 void Simulation::resetStepControl() {

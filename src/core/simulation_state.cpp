@@ -17,6 +17,7 @@ Status Simulation::setState(const VecX& x, const VecX& v) {
   for (auto& [node, pin] : pins_) pin.position = position(node);
   stepper_.clearContacts();
   measures_ = measureEnergy(model_, x_, v_);
+  measures_.repulsion = repulsionEnergy(x_);
   last_stats_.energy = measures_.total();
   last_stats_.max_strain = measures_.max_strain;
   return Status::success();

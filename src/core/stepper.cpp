@@ -25,6 +25,20 @@ bool hasSpringDamping(const Model& model) {
 
 }  // namespace
 
+void Stepper::forces(const Model& model, const VecX& x, const VecX& v, VecX& f,
+                     const std::vector<Vec3>* damping_axes) const {
+  computeForces(model, x, v, f, damping_axes);
+  if (repulsion_) repulsion_->addForces(x, v, f);
+}
+
+void Stepper::assemble(const Model& model, const VecX& x, const VecX& v, double a, double b,
+                       const VecX* w, VecX* dfdx_w, const std::vector<Vec3>* damping_axes,
+                       bool linearized) {
+  assembleSystem(model, x, v, a, b, settings_.project_compression, A_, f_, w, dfdx_w,
+                 damping_axes);
+  if (repulsion_) repulsion_->addToSystem(x, v, a, b, linearized, A_, f_, w, dfdx_w);
+}
+
 CgResult Stepper::solveLinear(const Model& model, const VecX& b, VecX& x, double tolerance) {
   if (!(tolerance > 0.0)) tolerance = settings_.tolerance;
   const bool trial = settings_.preconditioner == Preconditioner::Auto &&
@@ -147,9 +161,28 @@ StepStats Stepper::runMethod(const Model& model, double h, const History& histor
   axes_held_ = false;  // newtonSolve holds them where it should
   linearized_ = false;  // implicitEuler sets it where its reaction is A dv - rhs
   switch (method) {
-    case Method::ImplicitEuler:
+    case Method::ImplicitEuler: {
+      const bool repulsed = repulsion_ && !repulsion_->empty();
+      if (repulsed) x_repulsed_ = x, v_repulsed_ = v;
       stats = implicitEuler(model, h, x, v);
+      // The linearized repulsion's active set: solved again while the
+      // answer changes it, at most twice (the filter is the fail-safe).
+      for (int again = 0; again < 2 && repulsed && stats.ok && repulsion_->updateActiveSet(x) > 0;
+           ++again) {
+        x = x_repulsed_, v = v_repulsed_;
+        const bool first = first_pass_;
+        first_pass_ = false;  // warm start from this answer
+        const StepStats more = implicitEuler(model, h, x, v);
+        first_pass_ = first;
+        const int cg = stats.cg_iterations;
+        const double assembly = stats.assembly_s, solve = stats.solve_s;
+        stats = more;
+        stats.cg_iterations += cg;
+        stats.assembly_s += assembly;
+        stats.solve_s += solve;
+      }
       break;
+    }
     case Method::Newton:
       stats = newtonSolve(model, h, 1.0, x, v,
                           iteration_cap_ > 0 ? iteration_cap_ : settings_.newton_max_iterations,
@@ -184,7 +217,7 @@ StepStats Stepper::bdf2(const Model& model, double h, const History& history, Ve
     return newtonSolve(model, h, (1.0 + w) / (1.0 + 2.0 * w), ax_, av_, max_it, x, v);
   }
   // Trapezoidal rule: x1 = x + h/2 (v + v1), M v1 = M v + h/2 (f(x, v) + f(x1, v1)).
-  computeForces(model, x, v, f_);
+  forces(model, x, v, f_);
   ax_ = x + 0.5 * h * v;
   av_ = v;
   for (int i = 0; i < model.numNodes(); ++i) {
@@ -197,7 +230,7 @@ StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v)
   StepStats stats;
   const int n = model.numNodes();
   auto t0 = Clock::now();
-  assembleSystem(model, x, v, h, h * h, settings_.project_compression, A_, f_, &v, &dfdx_v_);
+  assemble(model, x, v, h, h * h, &v, &dfdx_v_, nullptr, true);
   rhs_ = h * (f_ + h * dfdx_v_);
   // Pinned velocity changes are prescribed: move their columns to the right side.
   pinned_dv_.setZero(3 * n);
@@ -274,7 +307,7 @@ StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v)
 double Stepper::residual(const Model& model, double bh, const VecX& ax, const VecX& av,
                          const VecX& v1, VecX& x1, VecX& g) {
   x1 = ax + bh * v1;
-  computeForces(model, x1, v1, f_, dampingAxes());
+  forces(model, x1, v1, f_, dampingAxes());
   return residualFromForces(model, bh, av, v1, f_, g);
 }
 
@@ -332,12 +365,11 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
                  settings_.method == Method::Newton && beta == 1.0 && decrement_stop_ == 0.0;
   if (axes_held_) springAxes(model, x, damping_axes_);
   x = ax_ + bh * v1;
-  auto assemble = [&] {
-    assembleSystem(model, x, v1, bh, bh * bh, settings_.project_compression, A_, f_, nullptr,
-                   nullptr, dampingAxes());
+  auto assembleIterate = [&] {
+    assemble(model, x, v1, bh, bh * bh, nullptr, nullptr, dampingAxes(), false);
     if (contact_on_) contact_.addFrictionJacobian(A_, bh);
   };
-  assemble();
+  assembleIterate();
   bool forces_at_v1 = true;  // f_ is f(x, v1): the reaction below reuses it
   const double g0 = residualFromForces(model, bh, av_, v1, f_, g_);
   double g_norm = g0;
@@ -354,7 +386,7 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
   while (g_norm > target && it < max_iterations && std::isfinite(g_norm)) {
     if (it > 0) {  // the first iterate was assembled above
       t0 = Clock::now();
-      assemble();
+      assembleIterate();
       forces_at_v1 = true;
       stats.assembly_s += secondsSince(t0);
     }
@@ -459,7 +491,7 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
     }
   }
   if (contact_on_) {  // reaction = M (v1 - av) - b h f(x1, v1), friction left out
-    if (!forces_at_v1) computeForces(model, x, v1, f_, dampingAxes());
+    if (!forces_at_v1) forces(model, x, v1, f_, dampingAxes());
     reaction_.resize(v1.size());
     for (int i = 0; i < model.numNodes(); ++i) {
       reaction_.segment<3>(3 * i) = model.mass[i] * (v1.segment<3>(3 * i) - av_.segment<3>(3 * i)) -
@@ -475,7 +507,7 @@ void Stepper::constraintImpulses(const Model& model, const VecX& x1, const VecX&
     *out = reaction_;
     return;
   }
-  computeForces(model, x1, v1, f_, dampingAxes());
+  forces(model, x1, v1, f_, dampingAxes());
   out->resize(v1.size());
   for (int i = 0; i < model.numNodes(); ++i) {
     out->segment<3>(3 * i) = model.mass[i] * (v1.segment<3>(3 * i) - av_.segment<3>(3 * i)) -
@@ -511,6 +543,7 @@ double Stepper::incrementalPotential(const Model& model, double bh, const VecX& 
     phi += 0.5 * model.mass[i] * (v1.segment<3>(3 * i) - av.segment<3>(3 * i)).squaredNorm();
   }
   if (contact_on_) phi += bh * contact_.frictionPotential(v1);  // friction's dissipation
+  if (repulsion_) phi += repulsion_->energy(x1) + bh * repulsion_->frictionPotential(v1);
   return phi + bh * dissipation;
 }
 

@@ -70,6 +70,7 @@ void SystemMatrix::resize(const std::shared_ptr<const SpringLayout>& layout) {
     node_scale_.assign(n, 0.0);
     has_damping_axes_ = false;
     node_blocks_.clear();
+    pair_terms_.clear();
     single_dirs_.clear();
   }
   changed();
@@ -88,6 +89,7 @@ void SystemMatrix::useDampingAxes() {
 void SystemMatrix::reset(const std::vector<double>& mass, double extra_diagonal) {
   for (size_t i = 0; i < node_scale_.size(); ++i) node_scale_[i] = mass[i] + extra_diagonal;
   node_blocks_.clear();
+  pair_terms_.clear();
   has_damping_axes_ = false;
   changed();
 }
@@ -114,6 +116,9 @@ const std::vector<SymBlock>& SystemMatrix::fullDiagonal() const {
     for (int c = 0; c < 6; ++c) full_diag_[i].v[c] = diag_split_[c * n + i];
   }
   for (const auto& [node, block] : node_blocks_) full_diag_[node].addScaled(1.0, block);
+  for (const PairTerm& t : pair_terms_) {
+    for (int k = 0; k < 4; ++k) full_diag_[t.node[k]].addScaled(1.0, t.diagonal(k));
+  }
   full_diag_valid_ = true;
   return full_diag_;
 }
@@ -161,6 +166,23 @@ void SystemMatrix::multiplySplitDouble(const double* xs, double* ys) const {
   for (const auto& [node, block] : node_blocks_) {
     const Vec3 y = block * Vec3(xs[node], xs[n + node], xs[2 * n + node]);
     for (int c = 0; c < 3; ++c) ys[c * n + node] += y[c];
+  }
+  multiplyPairTerms(xs, ys);
+}
+
+void SystemMatrix::multiplyPairTerms(const double* xs, double* ys) const {
+  const int n = numNodes();
+  for (const PairTerm& t : pair_terms_) {
+    double s[3] = {0.0, 0.0, 0.0};  // sum_k w_k x_k
+    for (int k = 0; k < 4; ++k) {
+      const int i = t.node[k];
+      for (int c = 0; c < 3; ++c) s[c] += t.w[k] * xs[c * n + i];
+    }
+    t.B.multiply(s, s);
+    for (int k = 0; k < 4; ++k) {
+      const int i = t.node[k];
+      for (int c = 0; c < 3; ++c) ys[c * n + i] += t.w[k] * s[c];
+    }
   }
 }
 

@@ -203,6 +203,7 @@ void SystemMatrix::multiplySplitSingle(const double* xs, double* ys) const {
     const Vec3 y = block * Vec3(xs[node], xs[n + node], xs[2 * n + node]);
     for (int c = 0; c < 3; ++c) ys[c * n + node] += y[c];
   }
+  multiplyPairTerms(xs, ys);
 }
 
 }  // namespace cloth_sim
