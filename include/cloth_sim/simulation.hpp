@@ -3,7 +3,6 @@
 // Runtime requests are validated first; a rejected request changes nothing.
 #pragma once
 
-
 #include <map>
 #include <memory>
 #include <string>
