@@ -166,7 +166,7 @@ class Stepper {
   Preconditioner preconditioner_ = Preconditioner::BlockJacobi;  ///< this step's (auto resolved)
   AutoPreconditioner auto_;  ///< `auto`'s choice across steps
   SelfRepulsion* repulsion_ = nullptr;  ///< setRepulsion's
-    ConstraintFilter filter_;  ///< pins (eliminated) and contacts (projected)
+  ConstraintFilter filter_;  ///< pins (eliminated) and contacts (projected)
   ContactSet contact_;
   bool contact_on_ = false;  ///< this step has colliders
   double bh_ = 0.0;          ///< the last solve's b h (reaction scale)
