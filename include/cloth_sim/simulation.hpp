@@ -232,6 +232,8 @@ class Simulation {
   /// (SelfCollision::repulsionTerms from x to x), measured at x (J); 0
   /// without self-collision.
   double repulsionEnergy(const VecX& x);
+  /// measures_ of the current state, the repulsion's energy included.
+  void measureState();
   VecX x_pre_self_;                  ///< x1 before the self-collision filter
   double min_self_distance_ = std::numeric_limits<double>::infinity();
   size_t next_event_ = 0;

@@ -172,7 +172,7 @@ class Stepper {
   double bh_ = 0.0;          ///< the last solve's b h (reaction scale)
   bool linearized_ = false;  ///< the last solve was implicitEuler's: reaction_ is A dv - rhs0_
   VecX x0_, v0_, reaction_, rhs0_;
-  VecX x_repulsed_, v_repulsed_;  ///< implicit_euler's start, for a solve again without separated terms
+  VecX x_repulsed_, v_repulsed_;  ///< implicit_euler's start, for a solve again with a changed active set
   const PinnedEnds* pins_ = nullptr;
   SystemMatrix A_;
   CgWorkspace cg_;

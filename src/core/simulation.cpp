@@ -73,9 +73,7 @@ void Simulation::reset() {
   step_count_ = 0;
   next_event_ = 0;
   work_in_total_ = 0.0;
-  measures_ = measureEnergy(model_, x_, v_);  // the repulsion's once self-collision is set up
   last_stats_ = StepStats();
-  last_stats_.max_strain = measures_.max_strain;
   stepper_ = Stepper(scene_.solver);
   colliders_.clear();
   collider_states_.clear();
@@ -87,8 +85,9 @@ void Simulation::reset() {
   collider_step_.thickness = scene_.contact.thickness;
   max_penetration_ = 0.0;
   self_collision_ = SelfCollision(model_, scene_.self_collision);
-  measures_.repulsion = repulsionEnergy(x_);
+  measureState();  // the repulsion's energy needs the self-collision set up
   last_stats_.energy = measures_.total();
+  last_stats_.max_strain = measures_.max_strain;
   min_self_distance_ = std::numeric_limits<double>::infinity();
   pins_.clear();
   for (int p : scene_.pins) pins_[p] = PinTarget{position(p), Vec3::Zero(), 0.0};
@@ -578,8 +577,7 @@ Status Simulation::setStiffness(const std::string& spring_type, double stiffness
     g.stiffness = stiffness;
     if (damping != -1.0) g.damping = damping;
   }
-  measures_ = measureEnergy(model_, x_, v_);
-  measures_.repulsion = repulsionEnergy(x_);
+  measureState();
   return Status::success("set " + spring_type + " stiffness to " + fmt(stiffness));
 }
 
@@ -648,8 +646,7 @@ Status Simulation::retune(const Tuning& tuning) {
     stepper_ = Stepper(scene_.solver);
     resetStepControl();
   }
-  measures_ = measureEnergy(model_, x_, v_);
-  measures_.repulsion = repulsionEnergy(x_);
+  measureState();
   return Status::success();
 }
 

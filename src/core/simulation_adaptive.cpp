@@ -37,8 +37,7 @@ void Simulation::restoreCheckpoint() {
   collider_states_ = checkpoint_.colliders;
   max_penetration_ = checkpoint_.max_penetration;
   min_self_distance_ = checkpoint_.min_self_distance;
-  measures_ = measureEnergy(model_, x_, v_);
-  measures_.repulsion = repulsionEnergy(x_);
+  measureState();
 }
 
 void Simulation::resetStepControl() {

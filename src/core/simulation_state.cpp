@@ -1,7 +1,13 @@
-// Simulation::setState: a start the scene file cannot describe.
+// Simulation::setState (a start the scene file cannot describe) and the
+// measure of a state (measureState).
 #include "cloth_sim/simulation.hpp"
 
 namespace cloth_sim {
+
+void Simulation::measureState() {
+  measures_ = measureEnergy(model_, x_, v_);
+  measures_.repulsion = repulsionEnergy(x_);
+}
 
 Status Simulation::setState(const VecX& x, const VecX& v) {
   const long size = 3L * numNodes();
@@ -16,8 +22,7 @@ Status Simulation::setState(const VecX& x, const VecX& v) {
   has_prev_ = false;
   for (auto& [node, pin] : pins_) pin.position = position(node);
   stepper_.clearContacts();
-  measures_ = measureEnergy(model_, x_, v_);
-  measures_.repulsion = repulsionEnergy(x_);
+  measureState();
   last_stats_.energy = measures_.total();
   last_stats_.max_strain = measures_.max_strain;
   return Status::success();
