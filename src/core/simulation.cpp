@@ -234,7 +234,6 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
   // released as motion, which no halving shrank (a folded cloth dropped on
   // a table under bdf2: 4.8e-5 J at dt / 256).
   const Method taken = as.value_or(scene_.solver.method);
-  double repulsion_before = 0.0;
   // implicit_euler scenes only (their refined Newton steps too): in newton
   // and bdf2 scenes, whose every step is a Newton solve, the terms' clamp
   // and friction's stiff smoothing stalled it (the twisted cloth, hard case
@@ -253,15 +252,15 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
     x_predicted_ = x_save_ + h * v_save_;  // where pairs may come close
     self_collision_.repulsionTerms(model_, x_save_, x_predicted_, reach,
                                    kRepulsionStiffness / (dt * dt), &repulsion_);
-    repulsion_before = repulsionEnergy(x_save_);
     stepper_.setRepulsion(&repulsion_);
   } else {
     repulsion_.clear();
     stepper_.setRepulsion(nullptr);
   }
-  // The start's as this attempt measures it (its terms' stiffness follows
-  // the scene's dt, which a retune may have changed).
-  const double before_total = before.total() - before.repulsion + repulsion_before;
+  // The start's repulsion energy is the last measure's (measureState, or
+  // the last accepted step's end): the same function of the same positions,
+  // so not built and measured again here (a hash query less a step).
+  const double before_total = before.total();
 
   if (refining_ && !pins_move && !colliders_move) {
     // A refined step is held to the energy check, not to a Newton tolerance:
