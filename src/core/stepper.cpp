@@ -172,14 +172,10 @@ StepStats Stepper::runMethod(const Model& model, double h, const History& histor
         x = x_repulsed_, v = v_repulsed_;
         const bool first = first_pass_;
         first_pass_ = false;  // warm start from this answer
-        const StepStats more = implicitEuler(model, h, x, v);
+        StepStats more = implicitEuler(model, h, x, v);
         first_pass_ = first;
-        const int cg = stats.cg_iterations;
-        const double assembly = stats.assembly_s, solve = stats.solve_s;
+        more.addWork(stats);  // the earlier solves' iterations and time
         stats = more;
-        stats.cg_iterations += cg;
-        stats.assembly_s += assembly;
-        stats.solve_s += solve;
       }
       break;
     }
