@@ -177,6 +177,8 @@ class Simulation {
   bool pinsJump() const;
   /// Whether a pin drifts at a velocity during the next step.
   bool pinsDrift() const;
+  /// Whether every node is slower than kRestSpeed (simulation_recovery.cpp).
+  bool nearRest() const;
   /// Work the pins did over a step from (x_save_, v_save_) to (x1, v1) (J),
   /// solved by `taken`; pin_ends_.reaction_read says whether a linearized
   /// step's own reaction may be read.
@@ -243,6 +245,8 @@ class Simulation {
   bool energy_rejected_ = false;  ///< the last attempt failed on the energy check alone
   bool refining_ = false;     ///< the attempt refines a linearized step (stepWithRecovery)
   bool refine_next_ = false;  ///< the last refined step took > 1 Newton iteration
+  int refine_skip_ = 0;       ///< steps refined at once before the linearized one is tried again
+  int refine_interval_ = 0;   ///< refine_skip_'s last value (doubles while the tries fail)
   Stepper stepper_;
   StepSizeControl step_control_;  ///< with solver.error_tolerance
   ConstraintFilter departure_filter_;  ///< reused by the error estimate

@@ -69,6 +69,8 @@ void Simulation::reset() {
   has_prev_ = false;
   h_prev_ = 0.0;
   refine_next_ = false;
+  refine_skip_ = 0;
+  refine_interval_ = 0;
   t_ = 0.0;
   step_count_ = 0;
   next_event_ = 0;
