@@ -228,6 +228,11 @@ class Simulation {
   double max_penetration_ = 0.0;
   SelfCollision self_collision_;
   SelfCollisionMasses self_masses_;  ///< reused per step
+  /// Self-repulsion inside the solve: with self-collision, in implicit_euler
+  /// scenes only (their refined Newton steps too; see Simulation::attempt).
+  bool repulsionOn() const {
+    return self_collision_.enabled() && scene_.solver.method == Method::ImplicitEuler;
+  }
   SelfRepulsion repulsion_;  ///< the attempt's self-repulsion terms (built at its start)
   SelfRepulsion repulsion_measure_;  ///< repulsionEnergy's terms
   /// The self-repulsion energy of positions x: of the terms built at x

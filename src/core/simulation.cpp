@@ -235,14 +235,12 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
   // only at the next step's start: its energy was credited there and
   // released as motion, which no halving shrank (a folded cloth dropped on
   // a table under bdf2: 4.8e-5 J at dt / 256).
-  const Method taken = as.value_or(scene_.solver.method);
   // implicit_euler scenes only (their refined Newton steps too): in newton
   // and bdf2 scenes, whose every step is a Newton solve, the terms' clamp
   // and friction's stiff smoothing stalled it (the twisted cloth, hard case
   // s4, under bdf2: not done in 400 s where 19 s without; under newton it
   // failed at t = 0.9 s). There the filter acts at the whole thickness.
-  const bool repulsed = self_collision_.enabled() && taken != Method::SymplecticEuler &&
-                        scene_.solver.method == Method::ImplicitEuler;
+  const bool repulsed = repulsionOn();
   self_collision_.setProximity(repulsed ? kSelfProximity : 1.0);
   if (repulsed) {
     const double reach = kRepulsionReach * scene_.self_collision.thickness;
@@ -298,6 +296,7 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
   // held against, zones they dragged). The nodes the self-collision response
   // prescribes are not pins: their forces are internal (an inelastic stop
   // between two layers takes energy out), so nothing is credited for them.
+  const Method taken = as.value_or(scene_.solver.method);
   const double work =
       self_pin_work + (stats.ok && pins_move ? pinWork(x_, v_, h, taken) : 0.0);
   if (stats.ok && reject_linear && !stats.linear_converged) {
@@ -328,7 +327,7 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
     // energy must fall by as much. Counted as zero, that let a gain through
     // (the fling at stretch 1e6, dt 0.01: 4 sub-steps read -4.2e-3 J and the
     // energy rose by 1.8e-2 J, the stability map's integrated check failed).
-    after.repulsion = repulsed ? repulsionEnergy(x_) : 0.0;
+    after.repulsion = repulsionEnergy(x_);
     const double gain = after.total() - before_total - work - contact_work;
     // Symplectic Euler's energy oscillates by design: for it the check only
     // catches a blow-up.

@@ -48,7 +48,7 @@ void Simulation::filterSelfCollision(double h, StepStats* stats, double* pin_wor
 }
 
 double Simulation::repulsionEnergy(const VecX& x) {
-  if (!self_collision_.enabled() || scene_.solver.method != Method::ImplicitEuler) return 0.0;
+  if (!repulsionOn()) return 0.0;
   const double dt = scene_.solver.dt;
   self_collision_.repulsionTerms(model_, x, x, kRepulsionReach * scene_.self_collision.thickness,
                                  kRepulsionStiffness / (dt * dt), &repulsion_measure_);
