@@ -58,6 +58,7 @@
 #include <Eigen/Sparse>
 #include <Eigen/SparseCholesky>
 #include <algorithm>
+#include <memory>
 #include <vector>
 
 #include "cloth_sim/constraint_filter.hpp"
@@ -203,16 +204,16 @@ class MultigridPreconditioner {
   };
 
   void checkGrid(const SystemMatrix& A, int rows, int cols) const;
-  bool matchesStructure(const std::vector<Spring>& springs, const std::vector<char>& free,
-                        int rows, int cols) const;
-  void buildStructure(const std::vector<Spring>& springs, const std::vector<char>& free,
-                      int rows, int cols);
+  bool matchesStructure(const SystemMatrix& A, const std::vector<Spring>& springs,
+                        const std::vector<char>& free, int rows, int cols) const;
+  void buildStructure(const SystemMatrix& A, const std::vector<Spring>& springs,
+                      const std::vector<char>& free, int rows, int cols);
   /// Smoothers, Galerkin products and coarsest factor from the filled finest level.
   bool rebuildCoarse();
-  void buildHierarchy(const std::vector<Spring>& springs, const std::vector<char>& free,
-                      int rows, int cols);
+  void buildHierarchy(const SystemMatrix& A, const std::vector<Spring>& springs,
+                      const std::vector<char>& free, int rows, int cols);
   void buildCoarseSolver();
-  void fillFinest(const SystemMatrix& A, const std::vector<Spring>& springs);
+  void fillFinest(const SystemMatrix& A);
   void galerkin(const Level& fine, Level& coarse) const;
   bool prepareSmoother(Level& level) const;
   bool factorCoarsest();
@@ -225,10 +226,15 @@ class MultigridPreconditioner {
   std::vector<SymBlock> constrained_inv_;
   std::vector<int> projected_;
   std::vector<SymBlock> projector_;
-  // Finest-level refill, per spring: the lower block it adds to (-1: none, a
-  // pinned end); for a rerouted spring (via_node_ >= 0) the blocks of its two
-  // halves, end i to via and via to end j.
-  std::vector<int> spring_block_, via_node_, half_block_i_, half_block_j_;
+  // Finest-level refill, by the matrix's directions (a sweep over each
+  // direction's slots, not a gather per spring): per slot, the node between
+  // the spring's ends if it is rerouted (-1: not, or no spring), and the
+  // lower blocks it subtracts from (the spring's own, or its two halves';
+  // -1: none, a pinned end). Indexed [direction][slot].
+  struct SlotTargets {
+    std::vector<int> via, block_a, block_b;
+  };
+  std::vector<SlotTargets> slot_targets_;
   // Coarsest direct solve: lower triangle of its matrix as a scalar sparse matrix.
   Eigen::SparseMatrix<double> coarse_matrix_;
   std::vector<int> coarse_node_index_;   ///< value index of entry r >= c of node blocks, 6 a node
@@ -237,6 +243,9 @@ class MultigridPreconditioner {
   // What the patterns were built for.
   int rows_ = -1, cols_ = -1;
   std::vector<int> spring_ends_;
+  // The matrix layout and spring list the patterns were last matched to.
+  std::shared_ptr<const SpringLayout> layout_key_;
+  const Spring* springs_key_ = nullptr;
   std::vector<char> free_key_;
   bool ready_ = false;
   // Reuse state: the finest node blocks' traces the coarse levels were built from, solves

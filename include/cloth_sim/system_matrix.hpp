@@ -71,6 +71,10 @@ class SystemMatrix {
     changed();
     return coefficients_[direction];
   }
+  const Coefficients& coefficients(int direction) const { return coefficients_[direction]; }
+  bool hasDampingAxes() const { return has_damping_axes_; }
+  /// The layout the matrix was sized for (resize).
+  const std::shared_ptr<const SpringLayout>& layout() const { return layout_; }
   /// Makes the held damping axes part of the matrix until reset().
   void useDampingAxes();
   /// Adds a symmetric block to node i's diagonal (a contact's friction
