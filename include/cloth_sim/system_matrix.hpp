@@ -71,8 +71,6 @@ class SystemMatrix {
     changed();
     return coefficients_[direction];
   }
-  const Coefficients& coefficients(int direction) const { return coefficients_[direction]; }
-  bool hasDampingAxes() const { return has_damping_axes_; }
   /// The layout the matrix was sized for (resize).
   const std::shared_ptr<const SpringLayout>& layout() const { return layout_; }
   /// Makes the held damping axes part of the matrix until reset().
@@ -110,6 +108,8 @@ class SystemMatrix {
   Mat3 diag(int node) const { return node_scale_[node] * Mat3::Identity(); }
   Mat3 coupling(int spring) const { return couplingBlock(spring).toMat3(); }
   SymBlock couplingBlock(int spring) const;
+  /// The coupling block of a direction's slot (zero where it holds no spring).
+  SymBlock couplingBlockAt(int direction, int slot) const;
 
   /// y = A x, unfiltered (contact reactions), in double precision.
   void multiplyAll(const VecX& x, VecX& y) const;
@@ -180,8 +180,11 @@ class SystemMatrix {
 
 inline SymBlock SystemMatrix::couplingBlock(int spring) const {
   const SpringSlot& s = layout_->slot[spring];
-  const Coefficients& d = coefficients_[s.direction];
-  const int p = s.node;
+  return couplingBlockAt(s.direction, s.node);
+}
+
+inline SymBlock SystemMatrix::couplingBlockAt(int direction, int p) const {
+  const Coefficients& d = coefficients_[direction];
   const double a = d.axis[p], iso = d.iso[p], u0 = d.u[0][p], u1 = d.u[1][p], u2 = d.u[2][p];
   SymBlock S{{iso + a * u0 * u0, iso + a * u1 * u1, iso + a * u2 * u2, a * u0 * u1, a * u0 * u2,
               a * u1 * u2}};

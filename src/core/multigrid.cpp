@@ -353,24 +353,15 @@ void MultigridPreconditioner::fillFinest(const SystemMatrix& A) {
   }
   std::fill(level.lower_block.begin(), level.lower_block.end(), SymBlock());
   const SpringLayout& layout = *A.layout();
-  const bool held = A.hasDampingAxes();
   SymBlock* node_block = level.node_block.data();
   SymBlock* lower = level.lower_block.data();
   for (size_t d = 0; d < layout.directions.size(); ++d) {
     const SpringDirection& dir = layout.directions[d];
-    const SystemMatrix::Coefficients& c = A.coefficients(static_cast<int>(d));
     const SlotTargets& t = slot_targets_[d];
     const int o = dir.offset;
     for (int p = 0; p < dir.slots; ++p) {
       if (dir.valid[p] == 0.0) continue;
-      const double a = c.axis[p], iso = c.iso[p], u0 = c.u[0][p], u1 = c.u[1][p], u2 = c.u[2][p];
-      SymBlock S{{iso + a * u0 * u0, iso + a * u1 * u1, iso + a * u2 * u2, a * u0 * u1,
-                  a * u0 * u2, a * u1 * u2}};
-      if (held) {
-        const double e = c.c[p], w0 = c.w[0][p], w1 = c.w[1][p], w2 = c.w[2][p];
-        S.addScaled(1.0, {{e * w0 * w0, e * w1 * w1, e * w2 * w2, e * w0 * w1, e * w0 * w2,
-                           e * w1 * w2}});
-      }
+      const SymBlock S = A.couplingBlockAt(static_cast<int>(d), p);
       const int m = t.via[p];
       if (m < 0) {
         node_block[p].addScaled(1.0, S);
