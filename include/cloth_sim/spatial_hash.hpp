@@ -5,9 +5,15 @@
 // node), each once. With a reuse margin, a table's pairs are found for boxes
 // grown by it and kept: a later query whose boxes lie inside them (the
 // filter's impulses, a re-solve, the end-of-step measure) filters the kept
-// pairs instead of hashing again, with the same answer.
+// pairs instead of hashing again, with the same answer. Kept pairs also keep
+// their distance at the hashing, which bounds how near they can be later
+// (each point of a pair moves no further than its nodes do): a query may
+// leave out the pairs that bound keeps beyond its reach (DistanceCull), so
+// that the narrow phase computes no distance between parts of a flat cloth
+// that are a mesh spacing apart.
 #pragma once
 
+#include <limits>
 #include <utility>
 #include <vector>
 
@@ -28,7 +34,27 @@ CollisionMesh buildCollisionMesh(int num_nodes, const std::vector<Eigen::Vector3
 struct CandidatePairs {
   std::vector<std::pair<int, int>> point_triangle;  ///< (node, triangle), sorted
   std::vector<std::pair<int, int>> edge_edge;       ///< (edge a, edge b), a < b, sorted
-  void clear() { point_triangle.clear(); edge_edge.clear(); }
+  /// The smallest distance bound among the pairs a DistanceCull left out
+  /// (each > its `below`; infinity when none was)
+  double culled_bound = std::numeric_limits<double>::infinity();
+  void clear() {
+    point_triangle.clear(), edge_edge.clear();
+    culled_bound = std::numeric_limits<double>::infinity();
+  }
+};
+
+/// Which pairs a query may leave out by distance. A kept pair's distance d
+/// at the hashing's x0 (the reference) and its nodes' largest displacement
+/// from there over the query's x0 and x1, da on one side and db on the
+/// other, bound its distance anywhere along the linear motion x0 -> x1 from
+/// below by d - da - db. The pair is left out when d - factor (da + db) >
+/// below. Factor 1 is that bound; a caller whose test can move a pair's
+/// measure further (a gap along a normal fixed at x0, read at x1) passes the
+/// factor that covers it. Only with reuse on (SpatialHash::setReuseMargin):
+/// hashed without it, nothing is left out.
+struct DistanceCull {
+  double below = -1.0;  ///< negative: leave nothing out
+  double factor = 1.0;  ///< >= 1
 };
 
 /// An axis-aligned box.
@@ -47,10 +73,11 @@ class SpatialHash {
   /// Inputs: mesh, the step's start and end positions x0, x1 (3n), `gap` >= 0.
   /// Output: every non-adjacent pair whose swept boxes, each grown by gap/2,
   /// overlap (so every pair that may come within `gap` during the linear
-  /// motion), each once. Cost: linear in the elements plus the cells they
-  /// cover plus the pairs found (then sorted).
+  /// motion), each once, less those `cull` leaves out. Cost: linear in the
+  /// elements plus the cells they cover plus the pairs found (then sorted);
+  /// hashing with reuse on adds a distance per pair found.
   void findPairs(const CollisionMesh& mesh, const VecX& x0, const VecX& x1, double gap,
-                 CandidatePairs* out);
+                 CandidatePairs* out, const DistanceCull& cull = {});
   double cellSize() const { return cell_; }
   /// Hashing grows the boxes by `margin` >= 0 more (m) and keeps the pairs,
   /// so that queries moving no node's box beyond it reuse them (0: every
@@ -73,9 +100,12 @@ class SpatialHash {
   /// Every non-adjacent pair whose boxes (node_box_ grown by pad) overlap,
   /// into kept_ (sorted, unique).
   void hashPairs(const CollisionMesh& mesh, double pad);
+  /// The kept pairs' distances at kept_reference_.
+  void measureKept(const CollisionMesh& mesh);
   /// The kept pairs whose boxes (the swept boxes of x0 -> x1 grown by pad)
-  /// overlap, into out.
-  void filterKept(const CollisionMesh& mesh, double pad, CandidatePairs* out);
+  /// overlap, less those `cull` leaves out, into out.
+  void filterKept(const CollisionMesh& mesh, const VecX& x0, const VecX& x1, double pad,
+                  const DistanceCull& cull, CandidatePairs* out);
   template <class Visit>
   void forCells(const Box& box, Visit visit) const;
 
@@ -90,6 +120,10 @@ class SpatialHash {
   bool kept_valid_ = false;
   size_t kept_triangles_ = 0, kept_edges_ = 0;  ///< the mesh they were found on
   CandidatePairs kept_;
+  /// The last hashing's x0, and each kept pair's distance there
+  VecX kept_reference_;
+  std::vector<double> kept_point_triangle_distance_, kept_edge_edge_distance_;
+  std::vector<double> moved_;  ///< a query's node displacements from the reference
   long hashed_ = 0, reused_ = 0;
 };
 

@@ -31,6 +31,18 @@ constexpr double kProximitySettled = 1e-4;
 constexpr int kProximitySweeps = 30;
 // A node's room towards its collider below this many thicknesses is none.
 constexpr double kRoomRoundOff = 1e-9;
+// The CCD (collision_geometry.hpp) reports a pair once within 1.1 times the
+// separation, or when 500 advances did not get it past the step. A pair
+// whose distance bound (DistanceCull) stays above 1.1 separations with this
+// much of the nodes' displacement to spare does neither: each advance is at
+// least 0.9 (bound - separation) / (8 displacement), 500 of them cover the
+// step once the spare 0.02 exceeds 8 / (0.9 * 500) = 0.018.
+constexpr double kCcdReported = 1.1;
+constexpr double kCcdCullFactor = 1.02;
+// repulsionTerms keeps a pair whose gap along its x0 normal is below the
+// reach at x1, which moves from x0's distance by the relative displacement
+// of the closest points: at most 2 (da + db) beyond the bound's own.
+constexpr double kRepulsionCullFactor = 3.0;
 
 }  // namespace
 
@@ -191,7 +203,8 @@ int SelfCollision::find(int i) {
 
 void SelfCollision::detect(const VecX& x0, const VecX& x1, bool skip_zones) {
   hits_.clear();
-  hash_.findPairs(mesh_, x0, x1, separation_, &pairs_);
+  hash_.findPairs(mesh_, x0, x1, separation_, &pairs_,
+                  DistanceCull{kCcdReported * separation_, kCcdCullFactor});
   std::array<Vec3, 4> a0, a1;
   auto test = [&](int kind, int a, int b) {
     const std::array<int, 4> nodes = nodesOf(kind, a, b);
@@ -344,7 +357,7 @@ SelfCollisionResult SelfCollision::apply(const Model& model, double h, const Vec
 
   // 1. Proximity at the end of the step.
   const double proximity = proximity_ * thickness_;
-  hash_.findPairs(mesh_, x0, x1, proximity, &pairs_);
+  hash_.findPairs(mesh_, x0, x1, proximity, &pairs_, DistanceCull{proximity, 1.0});
   result.candidates = static_cast<int>(pairs_.point_triangle.size() + pairs_.edge_edge.size());
   close_.clear();
   std::array<Vec3, 4> at, start;
@@ -453,7 +466,7 @@ SelfCollisionResult SelfCollision::apply(const Model& model, double h, const Vec
 void SelfCollision::repulsionTerms(const Model& model, const VecX& x0, const VecX& x1,
                                    double reach, double scale, SelfRepulsion* out) {
   out->clear();
-  hash_.findPairs(mesh_, x0, x1, reach, &pairs_);
+  hash_.findPairs(mesh_, x0, x1, reach, &pairs_, DistanceCull{reach, kRepulsionCullFactor});
   node_terms_.assign(model.numNodes(), {-1, -1});
   std::array<Vec3, 4> at;
   Pair pair;
@@ -497,9 +510,12 @@ void SelfCollision::repulsionTerms(const Model& model, const VecX& x0, const Vec
 
 void SelfCollision::measure(const VecX& x, SelfCollisionResult* result) {
   // Wide enough for the pairs resting just beyond the thickness.
-  hash_.findPairs(mesh_, x, x, (1.0 + kRestingSlack) * thickness_, &pairs_);
+  const double wide = (1.0 + kRestingSlack) * thickness_;
+  hash_.findPairs(mesh_, x, x, wide, &pairs_, DistanceCull{wide, 1.0});
   result->contacts = 0;
-  result->min_distance = std::numeric_limits<double>::infinity();
+  // The pairs left out are farther than `wide`: their bound is "some
+  // distance >= the thickness" as the pairs beyond it the hash gave were.
+  result->min_distance = pairs_.culled_bound;
   std::array<Vec3, 4> at;
   auto visit = [&](int kind, int a, int b) {
     gather(nodesOf(kind, a, b), x, &at);

@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "cloth_sim/collision_geometry.hpp"
+
 namespace cloth_sim {
 
 CollisionMesh buildCollisionMesh(int num_nodes, const std::vector<Eigen::Vector3i>& triangles) {
@@ -83,7 +85,7 @@ void SpatialHash::buildTable(const std::vector<Box>& boxes, Table* table) {
 }
 
 void SpatialHash::findPairs(const CollisionMesh& mesh, const VecX& x0, const VecX& x1,
-                            double gap, CandidatePairs* out) {
+                            double gap, CandidatePairs* out, const DistanceCull& cull) {
   out->clear();
   const int n = mesh.num_nodes;
   const double pad = 0.5 * gap;
@@ -100,7 +102,7 @@ void SpatialHash::findPairs(const CollisionMesh& mesh, const VecX& x0, const Vec
     }
     if (pad + beyond <= kept_pad_) {
       ++reused_;
-      filterKept(mesh, pad, out);
+      filterKept(mesh, x0, x1, pad, cull, out);
       return;
     }
   }
@@ -116,9 +118,11 @@ void SpatialHash::findPairs(const CollisionMesh& mesh, const VecX& x0, const Vec
   kept_triangles_ = mesh.triangles.size();
   kept_edges_ = mesh.edges.size();
   hashPairs(mesh, kept_pad_);
+  kept_reference_ = x0;
+  measureKept(mesh);
   kept_valid_ = true;
   node_box_ = kept_node_box_;  // unpadded again, for filterKept to pad
-  filterKept(mesh, pad, out);
+  filterKept(mesh, x0, x1, pad, cull, out);
 }
 
 void SpatialHash::padBoxes(const CollisionMesh& mesh, double pad) {
@@ -187,13 +191,65 @@ void SpatialHash::hashPairs(const CollisionMesh& mesh, double pad) {
   }
 }
 
-void SpatialHash::filterKept(const CollisionMesh& mesh, double pad, CandidatePairs* out) {
-  padBoxes(mesh, pad);  // as a fresh query makes them (same arithmetic: same answer)
-  for (const auto& [node, tri] : kept_.point_triangle) {
-    if (node_box_[node].overlaps(tri_box_[tri])) out->point_triangle.emplace_back(node, tri);
+void SpatialHash::measureKept(const CollisionMesh& mesh) {
+  const VecX& x = kept_reference_;
+  auto at = [&](int i) { return x.segment<3>(3 * i); };
+  kept_point_triangle_distance_.resize(kept_.point_triangle.size());
+  for (size_t k = 0; k < kept_.point_triangle.size(); ++k) {
+    const auto& [node, tri] = kept_.point_triangle[k];
+    const Eigen::Vector3i& t = mesh.triangles[tri];
+    kept_point_triangle_distance_[k] = pointTriangleDistance(at(node), at(t[0]), at(t[1]), at(t[2]));
   }
-  for (const auto& [a, b] : kept_.edge_edge) {
-    if (edge_box_[a].overlaps(edge_box_[b])) out->edge_edge.emplace_back(a, b);
+  kept_edge_edge_distance_.resize(kept_.edge_edge.size());
+  for (size_t k = 0; k < kept_.edge_edge.size(); ++k) {
+    const Eigen::Vector2i& a = mesh.edges[kept_.edge_edge[k].first];
+    const Eigen::Vector2i& b = mesh.edges[kept_.edge_edge[k].second];
+    kept_edge_edge_distance_[k] = edgeEdgeDistance(at(a[0]), at(a[1]), at(b[0]), at(b[1]));
+  }
+}
+
+void SpatialHash::filterKept(const CollisionMesh& mesh, const VecX& x0, const VecX& x1,
+                             double pad, const DistanceCull& cull, CandidatePairs* out) {
+  padBoxes(mesh, pad);  // as a fresh query makes them (same arithmetic: same answer)
+  const bool culling = cull.below >= 0.0;
+  if (culling) {
+    const int n = mesh.num_nodes;
+    moved_.resize(n);
+    for (int i = 0; i < n; ++i) {
+      const auto ref = kept_reference_.segment<3>(3 * i);
+      moved_[i] = std::sqrt(std::max((x0.segment<3>(3 * i) - ref).squaredNorm(),
+                                     (x1.segment<3>(3 * i) - ref).squaredNorm()));
+    }
+  }
+  // A pair is left out only when its bound clears `below` by more than the
+  // round-off of the distances and displacements it is made of.
+  const double below = cull.below * (1.0 + 1e-9) + 1e-12;
+  auto leftOut = [&](double distance, double moved) {
+    const double bound = distance - cull.factor * moved;
+    if (!(bound > below)) return false;
+    out->culled_bound = std::min(out->culled_bound, bound);
+    return true;
+  };
+  for (size_t k = 0; k < kept_.point_triangle.size(); ++k) {
+    const auto& [node, tri] = kept_.point_triangle[k];
+    if (!node_box_[node].overlaps(tri_box_[tri])) continue;
+    if (culling) {
+      const Eigen::Vector3i& t = mesh.triangles[tri];
+      const double moved = moved_[node] + std::max({moved_[t[0]], moved_[t[1]], moved_[t[2]]});
+      if (leftOut(kept_point_triangle_distance_[k], moved)) continue;
+    }
+    out->point_triangle.emplace_back(node, tri);
+  }
+  for (size_t k = 0; k < kept_.edge_edge.size(); ++k) {
+    const auto& [a, b] = kept_.edge_edge[k];
+    if (!edge_box_[a].overlaps(edge_box_[b])) continue;
+    if (culling) {
+      const Eigen::Vector2i& ea = mesh.edges[a];
+      const Eigen::Vector2i& eb = mesh.edges[b];
+      const double moved = std::max(moved_[ea[0]], moved_[ea[1]]) + std::max(moved_[eb[0]], moved_[eb[1]]);
+      if (leftOut(kept_edge_edge_distance_[k], moved)) continue;
+    }
+    out->edge_edge.emplace_back(a, b);
   }
 }
 

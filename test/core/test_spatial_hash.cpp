@@ -2,8 +2,12 @@
 // linearly with a flat cloth's nodes.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
+#include <limits>
 #include <random>
 
+#include "cloth_sim/collision_geometry.hpp"
 #include "cloth_sim/model.hpp"
 #include "cloth_sim/spatial_hash.hpp"
 #include "scene_builders.hpp"
@@ -99,6 +103,69 @@ TEST(SpatialHash, KeptPairsGiveWhatAFreshQueryGives) {
   EXPECT_GE(kept.reusedQueries(), 3);
   EXPECT_EQ(kept.hashedQueries() + kept.reusedQueries(), 7);
   EXPECT_EQ(fresh.reusedQueries(), 0);
+}
+
+TEST(SpatialHash, DistanceCullLeavesOutOnlyPairsThatStayBeyondItsReach) {
+  // Kept pairs and small moves, as a step's queries: each pair a cull leaves
+  // out (a fresh query's pair missing from the culled answer) stays farther
+  // than `below` all along the motion x0 -> x1, and the reported bound is no
+  // more than its distance. On a flat cloth, nearly every pair is left out:
+  // they are a mesh spacing apart.
+  const Model model = buildModel(test::bareScene(9, 11));
+  const CollisionMesh mesh = buildCollisionMesh(model.numNodes(), model.triangles);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (const double crumple : {0.0, 0.05}) {
+    VecX x0 = model.rest_positions;
+    for (int k = 0; k < x0.size(); ++k) x0[k] += crumple * u(rng);
+    VecX x1 = x0;
+    SpatialHash kept, fresh;
+    kept.setReuseMargin(0.01);
+    size_t found = 0, left_out = 0;
+    for (int query = 0; query < 6; ++query) {
+      for (int k = 0; k < x1.size(); ++k) x1[k] += 0.002 * u(rng);
+      const double gap = 0.01;
+      const double below = query % 2 ? gap : 3.0 * gap;
+      CandidatePairs a, b;
+      kept.findPairs(mesh, x0, x1, gap, &a, DistanceCull{below, 1.0});
+      fresh.findPairs(mesh, x0, x1, gap, &b);
+      found += b.point_triangle.size() + b.edge_edge.size();
+      double nearest = std::numeric_limits<double>::infinity();
+      auto check = [&](const std::array<int, 4>& nodes, bool point_triangle) {
+        for (double t = 0.0; t <= 1.0; t += 0.125) {
+          const VecX x = (1.0 - t) * x0 + t * x1;
+          std::array<Vec3, 4> p;
+          for (int k = 0; k < 4; ++k) p[k] = x.segment<3>(3 * nodes[k]);
+          const double d = point_triangle ? pointTriangleDistance(p[0], p[1], p[2], p[3])
+                                          : edgeEdgeDistance(p[0], p[1], p[2], p[3]);
+          EXPECT_GT(d, below);
+          nearest = std::min(nearest, d);
+        }
+      };
+      for (const auto& pair : b.point_triangle) {
+        if (std::binary_search(a.point_triangle.begin(), a.point_triangle.end(), pair)) continue;
+        ++left_out;
+        const Eigen::Vector3i& t = mesh.triangles[pair.second];
+        check({pair.first, t[0], t[1], t[2]}, true);
+      }
+      for (const auto& pair : b.edge_edge) {
+        if (std::binary_search(a.edge_edge.begin(), a.edge_edge.end(), pair)) continue;
+        ++left_out;
+        const Eigen::Vector2i& ea = mesh.edges[pair.first];
+        const Eigen::Vector2i& eb = mesh.edges[pair.second];
+        check({ea[0], ea[1], eb[0], eb[1]}, false);
+      }
+      // Everything the culled answer has, the fresh one has too.
+      EXPECT_TRUE(std::includes(b.point_triangle.begin(), b.point_triangle.end(),
+                                a.point_triangle.begin(), a.point_triangle.end()));
+      EXPECT_TRUE(std::includes(b.edge_edge.begin(), b.edge_edge.end(), a.edge_edge.begin(),
+                                a.edge_edge.end()));
+      EXPECT_LE(a.culled_bound, nearest);
+      EXPECT_TRUE(std::isinf(b.culled_bound));
+    }
+    if (crumple == 0.0) EXPECT_GT(left_out, found * 9 / 10);
+    EXPECT_GT(left_out, 0u);
+  }
 }
 
 TEST(SpatialHash, EdgesAreUniqueAndComplete) {
