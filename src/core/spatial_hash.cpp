@@ -113,6 +113,14 @@ void SpatialHash::findPairs(const CollisionMesh& mesh, const VecX& x0, const Vec
     kept_valid_ = false;
     return;
   }
+  // Kept boxes reach on along each node's motion for kAhead more such
+  // moves: a cloth moving steadily is hashed every few steps, not at every
+  // step's first query (its travel beyond the margin).
+  query_box_ = node_box_;
+  for (int i = 0; i < n; ++i) {
+    const Vec3 ahead = x1.segment<3>(3 * i) + kAhead * (x1.segment<3>(3 * i) - x0.segment<3>(3 * i));
+    node_box_[i] = Box{node_box_[i].lo.cwiseMin(ahead), node_box_[i].hi.cwiseMax(ahead)};
+  }
   kept_node_box_ = node_box_;
   kept_pad_ = pad + margin_;
   kept_triangles_ = mesh.triangles.size();
@@ -121,7 +129,7 @@ void SpatialHash::findPairs(const CollisionMesh& mesh, const VecX& x0, const Vec
   kept_reference_ = x0;
   measureKept(mesh);
   kept_valid_ = true;
-  node_box_ = kept_node_box_;  // unpadded again, for filterKept to pad
+  std::swap(node_box_, query_box_);  // the query's own, unpadded, for filterKept to pad
   filterKept(mesh, x0, x1, pad, cull, out);
 }
 
