@@ -39,8 +39,9 @@ struct SelfCollisionResult {
   /// it (within kRestingSlack of it: where the response leaves them)
   int contacts = 0;
   /// smallest distance between non-adjacent primitives at the end; exact
-  /// when below the thickness, else some distance >= the thickness (pairs
-  /// farther apart are not looked at), infinity when none is near
+  /// when below the thickness, else a lower bound >= the thickness of the
+  /// near pairs' distances (DistanceCull; pairs farther apart are not looked
+  /// at), infinity when none is near
   double min_distance = std::numeric_limits<double>::infinity();
   int proximity_impulses = 0;
   /// Gauss-Seidel sweeps the proximity impulses took to settle (the limit,
