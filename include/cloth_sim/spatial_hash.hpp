@@ -114,6 +114,9 @@ class SpatialHash {
   Table tri_table_, edge_table_;
   std::vector<unsigned> bucket_scratch_;
   double margin_ = 0.0;
+  /// Kept boxes reach this many more moves on along each node's motion.
+  static constexpr double kAhead = 2.0;
+  std::vector<Box> query_box_;  ///< a hashing query's own node boxes
   /// The last hashing's unpadded node boxes, their pad and its pairs.
   std::vector<Box> kept_node_box_;
   double kept_pad_ = 0.0;
