@@ -40,7 +40,9 @@ class CholeskyFactor {
  public:
   /// Refills the values and factorizes. `grid_cols` > 0: the nodes form a
   /// grid with that many columns (bend springs rerouted); 0: A as it is.
-  /// Returns false if not positive definite.
+  /// A's pair terms (self repulsion) are factored whole, their couplings
+  /// too: the pattern grows by the node pairs they join (analysed again
+  /// when a new one appears). Returns false if not positive definite.
   bool factorize(const SystemMatrix& A, const std::vector<Spring>& springs,
                  const ConstraintFilter& filter, int grid_cols);
   void solve(const VecX& r, VecX& z) const { z = ldlt_.solve(r); }
@@ -55,6 +57,8 @@ class CholeskyFactor {
 
  private:
   void buildPattern(int num_nodes, const std::vector<Spring>& springs, int grid_cols);
+  /// The node pairs (larger, smaller) A's pair terms couple, into pair_nodes_.
+  void collectPairNodes(const SystemMatrix& A);
   Eigen::SparseMatrix<double> matrix_;
   std::vector<int> diag_index_;  ///< value index of entry (0,0) of each node block, per column
   /// Per spring: its middle node if rerouted (else -1), and the value
@@ -65,6 +69,9 @@ class CholeskyFactor {
   int num_nodes_ = -1;
   size_t num_springs_ = 0;
   int grid_cols_ = 0;
+  /// Node pairs the pattern holds beyond the springs' (sorted, unique), and
+  /// those the last matrix's pair terms couple.
+  std::vector<std::pair<int, int>> pattern_pairs_, pair_nodes_;
   bool valid_ = false;
   ConstraintFilter filter_;  ///< the filter the factor was made for
 };

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <limits>
 
 #include "cloth_sim/cg_kernels.hpp"
@@ -34,6 +35,7 @@ void CholeskyFactor::buildPattern(int n, const std::vector<Spring>& springs, int
       pair(via_[k], s.j);
     }
   }
+  for (const auto& [hi, lo] : pattern_pairs_) block(hi, lo);
   matrix_.resize(3 * n, 3 * n);
   matrix_.setFromTriplets(entries.begin(), entries.end());
   matrix_.makeCompressed();
@@ -68,10 +70,43 @@ void CholeskyFactor::buildPattern(int n, const std::vector<Spring>& springs, int
   grid_cols_ = grid_cols;
 }
 
+void CholeskyFactor::collectPairNodes(const SystemMatrix& A) {
+  pair_nodes_.clear();
+  for (const SystemMatrix::PairTerm& t : A.pairTerms()) {
+    for (int k = 0; k < 4; ++k) {
+      for (int l = k + 1; l < 4; ++l) {
+        const int a = t.node[k], b = t.node[l];
+        if (a != b) pair_nodes_.emplace_back(std::max(a, b), std::min(a, b));
+      }
+    }
+  }
+  std::sort(pair_nodes_.begin(), pair_nodes_.end());
+  pair_nodes_.erase(std::unique(pair_nodes_.begin(), pair_nodes_.end()), pair_nodes_.end());
+}
+
 bool CholeskyFactor::factorize(const SystemMatrix& A, const std::vector<Spring>& springs,
                                const ConstraintFilter& filter, int grid_cols) {
   const std::vector<char>& free = filter.freeMask();
   const int n = A.numNodes();
+  // The pair terms' couplings: a pattern that holds them all is kept (the
+  // pairs a heap's layers make change every few steps; analysing each time
+  // would cost more than the zeros the old ones leave), one that misses one
+  // is made again, for these pairs only once it holds twice as many.
+  collectPairNodes(A);
+  const bool covered = std::includes(pattern_pairs_.begin(), pattern_pairs_.end(),
+                                     pair_nodes_.begin(), pair_nodes_.end());
+  const bool bloated = pattern_pairs_.size() > 2 * pair_nodes_.size() + 64;
+  if (!covered || bloated) {
+    std::vector<std::pair<int, int>> merged;
+    if (!bloated) {
+      std::set_union(pattern_pairs_.begin(), pattern_pairs_.end(), pair_nodes_.begin(),
+                     pair_nodes_.end(), std::back_inserter(merged));
+    } else {
+      merged = pair_nodes_;
+    }
+    pattern_pairs_.swap(merged);
+    num_nodes_ = -1;  // made again below
+  }
   if (n != num_nodes_ || springs.size() != num_springs_ || grid_cols != grid_cols_) {
     buildPattern(n, springs, grid_cols);
   }
@@ -116,6 +151,26 @@ bool CholeskyFactor::factorize(const SystemMatrix& A, const std::vector<Spring>&
     } else {
       couple(&block_a_[9 * k], s.i, via_[k], -2.0 * S);
       couple(&block_b_[9 * k], via_[k], s.j, -2.0 * S);
+    }
+  }
+  // A pair term (w w^T) (x) B couples nodes k and l by w_k w_l B (its node
+  // blocks are in fullDiagonal's).
+  int nine[9];
+  for (const SystemMatrix::PairTerm& t : A.pairTerms()) {
+    const Mat3 B = t.B.toMat3();
+    for (int k = 0; k < 4; ++k) {
+      for (int l = k + 1; l < 4; ++l) {
+        const int a = t.node[k], b = t.node[l];
+        if (a == b) continue;
+        const int hi = std::max(a, b), lo = std::min(a, b);
+        for (int c = 0; c < 3; ++c) {
+          for (int r = 0; r < 3; ++r) {
+            nine[3 * c + r] =
+                static_cast<int>(&matrix_.coeffRef(3 * hi + r, 3 * lo + c) - matrix_.valuePtr());
+          }
+        }
+        couple(nine, a, b, (t.w[k] * t.w[l]) * B);
+      }
     }
   }
   ldlt_.factorize(matrix_);

@@ -7,7 +7,9 @@
 
 #include <random>
 
+#include "cloth_sim/constraint_filter.hpp"
 #include "cloth_sim/forces.hpp"
+#include "cloth_sim/linear_solver.hpp"
 #include "cloth_sim/self_repulsion.hpp"
 #include "cloth_sim/system_matrix.hpp"
 #include "scene_builders.hpp"
@@ -100,6 +102,45 @@ TEST(SelfRepulsion, PairTermsInTheMatrixAreTheForceJacobianAndItsDiagonalTheirNo
         EXPECT_LE((got - expected).norm(), 1e-12 * expected.norm()) << "node " << node;
       }
     }
+  }
+}
+
+TEST(SelfRepulsion, TheCholeskyPreconditionerFactorsPairTermsWhole) {
+  // Terms much stiffer than the springs and the masses: with only their
+  // node blocks in the factor, CG needs many iterations (a heap of layers
+  // under the Cholesky preconditioner: four times the self-off count);
+  // with their couplings it is A's own factor and one or two do. A second
+  // matrix with a term moved to other nodes makes the pattern grow.
+  const Model m = buildModel(test::hangingCloth(4));
+  VecX x, v;
+  test::perturbedState(m, 7, &x, &v);
+  SelfRepulsion r = someTerms(x);
+  const std::vector<char> free(m.numNodes(), 1);
+  const ConstraintFilter filter(free);
+  CgWorkspace ws;
+  for (int round = 0; round < 2; ++round) {
+    SCOPED_TRACE(round);
+    if (round == 1) {
+      RepulsionTerm t = r.terms()[0];
+      t.node = {1, 8, 13, 14};
+      r.replace(0, t);
+      ASSERT_TRUE(ws.cholesky);
+      ws.cholesky->invalidate();  // factored again, on the pattern it has
+    }
+    SystemMatrix A;
+    VecX f;
+    assembleSystem(m, x, v, 0.0, 1e-4, true, A, f);
+    r.addToSystem(x, v, 0.0, 100.0, true, A, f);
+    ASSERT_EQ(A.pairTerms().size(), 3u);
+    const VecX rhs = VecX::Random(x.size());
+    VecX y = VecX::Zero(x.size());
+    const CgResult res = conjugateGradient(A, m.springs, filter, rhs, y, Preconditioner::Cholesky,
+                                           1e-10, 200, ws);
+    EXPECT_TRUE(res.converged);
+    EXPECT_LE(res.iterations, 2);
+    VecX ay;
+    A.multiplyAll(y, ay);
+    EXPECT_LE((ay - rhs).norm(), 1e-9 * rhs.norm());
   }
 }
 
