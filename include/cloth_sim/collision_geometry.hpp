@@ -40,10 +40,15 @@ struct Impact {
 /// `max_iterations` advances, report one it cannot exclude.
 /// A pair that starts closer than `separation` reports hit at toi 0.
 /// Point–triangle: x = {p, a, b, c}. Edge–edge: x = {p0, p1, q0, q1}.
+/// The CCD reports a pair once its distance is within kCcdReportSlack x
+/// separation above the separation (and advances by 1 - that of what it
+/// may), after at most kCcdMaxIterations advances by default.
+constexpr double kCcdReportSlack = 0.1;
+constexpr int kCcdMaxIterations = 500;
 Impact pointTriangleCcd(const std::array<Vec3, 4>& x0, const std::array<Vec3, 4>& x1,
-                        double separation, int max_iterations = 500);
+                        double separation, int max_iterations = kCcdMaxIterations);
 Impact edgeEdgeCcd(const std::array<Vec3, 4>& x0, const std::array<Vec3, 4>& x1,
-                   double separation, int max_iterations = 500);
+                   double separation, int max_iterations = kCcdMaxIterations);
 
 /// Do closed triangles (a0, a1, a2) and (b0, b1, b2) share at least one point?
 /// Touching counts. Non-coplanar triangles intersect iff an edge of one meets

@@ -59,6 +59,9 @@ class CholeskyFactor {
   void buildPattern(int num_nodes, const std::vector<Spring>& springs, int grid_cols);
   /// The node pairs (larger, smaller) A's pair terms couple, into pair_nodes_.
   void collectPairNodes(const SystemMatrix& A);
+  /// Value indices of block (max(a, b), min(a, b)) of matrix_, entry (r, c)
+  /// at nine[3c + r] (the pattern must hold it).
+  void blockIndices(int a, int b, int* nine);
   Eigen::SparseMatrix<double> matrix_;
   std::vector<int> diag_index_;  ///< value index of entry (0,0) of each node block, per column
   /// Per spring: its middle node if rerouted (else -1), and the value

@@ -129,7 +129,7 @@ Impact additiveCcd(const std::array<Vec3, 4>& x0, const std::array<Vec3, 4>& x1,
   // paper stops at 10 % of the start gap (a time of impact for a line
   // search); here "no hit" must mean "never below the separation", so a pair
   // sliding past at a safe distance is followed to the end instead.
-  constexpr double kEta = 0.1;
+  constexpr double kEta = kCcdReportSlack;
   std::array<Vec3, 4> p;
   Vec3 mean = Vec3::Zero();
   for (int i = 0; i < 4; ++i) mean += 0.25 * (x1[i] - x0[i]);
@@ -156,7 +156,7 @@ Impact additiveCcd(const std::array<Vec3, 4>& x0, const std::array<Vec3, 4>& x1,
     if (t > 0.0 && !(d - separation >= gap)) return Impact{true, t};
     t = t_next;
     if (t > 1.0) return Impact{false, 1.0};
-    tl = 0.9 * (d - separation) / lp;
+    tl = (1.0 - kEta) * (d - separation) / lp;
   }
   return Impact{true, t};  // could not exclude a collision: say so
 }

@@ -39,15 +39,6 @@ void CholeskyFactor::buildPattern(int n, const std::vector<Spring>& springs, int
   matrix_.resize(3 * n, 3 * n);
   matrix_.setFromTriplets(entries.begin(), entries.end());
   matrix_.makeCompressed();
-  auto index_of = [&](int a, int b, int* nine) {  // entries (r, c) of block (max, min) at 3c + r
-    const int hi = std::max(a, b), lo = std::min(a, b);
-    for (int c = 0; c < 3; ++c) {
-      for (int r = 0; r < 3; ++r) {
-        nine[3 * c + r] =
-            static_cast<int>(&matrix_.coeffRef(3 * hi + r, 3 * lo + c) - matrix_.valuePtr());
-      }
-    }
-  };
   diag_index_.resize(9 * n);
   for (int i = 0; i < n; ++i) {
     for (int c = 0; c < 3; ++c) {
@@ -61,8 +52,8 @@ void CholeskyFactor::buildPattern(int n, const std::vector<Spring>& springs, int
   block_b_.assign(9 * springs.size(), -1);
   for (size_t k = 0; k < springs.size(); ++k) {
     const Spring& s = springs[k];
-    index_of(s.i, via_[k] < 0 ? s.j : via_[k], &block_a_[9 * k]);
-    if (via_[k] >= 0) index_of(via_[k], s.j, &block_b_[9 * k]);
+    blockIndices(s.i, via_[k] < 0 ? s.j : via_[k], &block_a_[9 * k]);
+    if (via_[k] >= 0) blockIndices(via_[k], s.j, &block_b_[9 * k]);
   }
   ldlt_.analyzePattern(matrix_);
   num_nodes_ = n;
@@ -70,15 +61,37 @@ void CholeskyFactor::buildPattern(int n, const std::vector<Spring>& springs, int
   grid_cols_ = grid_cols;
 }
 
+void CholeskyFactor::blockIndices(int a, int b, int* nine) {
+  const int hi = std::max(a, b), lo = std::min(a, b);
+  for (int c = 0; c < 3; ++c) {
+    for (int r = 0; r < 3; ++r) {
+      nine[3 * c + r] =
+          static_cast<int>(&matrix_.coeffRef(3 * hi + r, 3 * lo + c) - matrix_.valuePtr());
+    }
+  }
+}
+
+namespace {
+
+/// Calls visit(a, b, w_a w_b) for each two distinct nodes a pair term
+/// couples: its block between them is w_a w_b B.
+template <class Visit>
+void forEachCoupling(const SystemMatrix::PairTerm& t, Visit visit) {
+  for (int k = 0; k < 4; ++k) {
+    for (int l = k + 1; l < 4; ++l) {
+      if (t.node[k] != t.node[l]) visit(t.node[k], t.node[l], t.w[k] * t.w[l]);
+    }
+  }
+}
+
+}  // namespace
+
 void CholeskyFactor::collectPairNodes(const SystemMatrix& A) {
   pair_nodes_.clear();
   for (const SystemMatrix::PairTerm& t : A.pairTerms()) {
-    for (int k = 0; k < 4; ++k) {
-      for (int l = k + 1; l < 4; ++l) {
-        const int a = t.node[k], b = t.node[l];
-        if (a != b) pair_nodes_.emplace_back(std::max(a, b), std::min(a, b));
-      }
-    }
+    forEachCoupling(t, [&](int a, int b, double) {
+      pair_nodes_.emplace_back(std::max(a, b), std::min(a, b));
+    });
   }
   std::sort(pair_nodes_.begin(), pair_nodes_.end());
   pair_nodes_.erase(std::unique(pair_nodes_.begin(), pair_nodes_.end()), pair_nodes_.end());
@@ -158,20 +171,10 @@ bool CholeskyFactor::factorize(const SystemMatrix& A, const std::vector<Spring>&
   int nine[9];
   for (const SystemMatrix::PairTerm& t : A.pairTerms()) {
     const Mat3 B = t.B.toMat3();
-    for (int k = 0; k < 4; ++k) {
-      for (int l = k + 1; l < 4; ++l) {
-        const int a = t.node[k], b = t.node[l];
-        if (a == b) continue;
-        const int hi = std::max(a, b), lo = std::min(a, b);
-        for (int c = 0; c < 3; ++c) {
-          for (int r = 0; r < 3; ++r) {
-            nine[3 * c + r] =
-                static_cast<int>(&matrix_.coeffRef(3 * hi + r, 3 * lo + c) - matrix_.valuePtr());
-          }
-        }
-        couple(nine, a, b, (t.w[k] * t.w[l]) * B);
-      }
-    }
+    forEachCoupling(t, [&](int a, int b, double ww) {
+      blockIndices(a, b, nine);
+      couple(nine, a, b, ww * B);
+    });
   }
   ldlt_.factorize(matrix_);
   valid_ = ldlt_.info() == Eigen::Success;

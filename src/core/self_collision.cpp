@@ -32,13 +32,16 @@ constexpr int kProximitySweeps = 30;
 // A node's room towards its collider below this many thicknesses is none.
 constexpr double kRoomRoundOff = 1e-9;
 // The CCD (collision_geometry.hpp) reports a pair once within 1.1 times the
-// separation, or when 500 advances did not get it past the step. A pair
+// separation, or when its advances did not get it past the step. A pair
 // whose distance bound (DistanceCull) stays above 1.1 separations with this
 // much of the nodes' displacement to spare does neither: each advance is at
 // least 0.9 (bound - separation) / (8 displacement), 500 of them cover the
 // step once the spare 0.02 exceeds 8 / (0.9 * 500) = 0.018.
-constexpr double kCcdReported = 1.1;
+constexpr double kCcdReported = 1.0 + kCcdReportSlack;
 constexpr double kCcdCullFactor = 1.02;
+static_assert(kCcdCullFactor - 1.0 >
+                  8.0 / ((1.0 - kCcdReportSlack) * (kCcdMaxIterations - 2)),
+              "the cull's spare displacement must let the CCD's advances cover the step");
 // repulsionTerms keeps a pair whose gap along its x0 normal is below the
 // reach at x1, which moves from x0's distance by the relative displacement
 // of the closest points: at most 2 (da + db) beyond the bound's own.
