@@ -187,6 +187,11 @@ class Stepper {
   /// The last contact pass's answer: the next pass's Newton starts there
   /// (empty on a step's first pass).
   VecX v_pass_;
+  /// Newton's first corrections of the last two steps (first passes) and
+  /// the b h each was solved at (0: none): the next one's warm start.
+  VecX delta_first_before_;
+  double bh_of_first_ = 0.0, bh_of_first_before_ = 0.0;
+  double pass_g0_ = 0.0;  ///< ||g|| at the first pass's start: later passes' scale
   std::vector<Vec3> damping_axes_;  ///< along-spring damping axes held over a Newton step
   bool axes_held_ = false;        ///< damping_axes_ hold for the last step
   double decrement_stop_ = 0.0;    ///< setDecrementStop
