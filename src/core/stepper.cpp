@@ -373,14 +373,14 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
   const double g0 = residualFromForces(model, bh, av_, v1, f_, g_);
   double g_norm = g0;
   stats.assembly_s += secondsSince(t0);
-  // A later pass starts where the last one ended: its ||g|| is what the
-  // changed contacts left, and the step's tolerances stay relative to the
-  // first pass's ||g||. Relative to that remnant, a second pass on the
-  // floor scene took 60 CG iterations where the first took 28.
-  // Only for a linearized step (one iteration): a Newton solve's later
-  // passes kept to the tighter scale of their own ||g|| (stiffened cloth on a
-  // table, contact hard case c4, newton: 2x the time and 3x the strain).
-  const bool again = warm && max_iterations == 1;  ///< a linearized step's later pass
+  // A later pass of a linearized step (one iteration) starts where the last
+  // one ended: its ||g|| is what the changed contacts left, and its
+  // tolerances stay relative to the first pass's ||g||. Relative to that
+  // remnant, a second pass on the floor scene took 60 CG iterations where the
+  // first took 28. A Newton solve's later passes keep the tighter scale of
+  // their own ||g||: with the first pass's, the stiffened cloth on a table
+  // (contact hard case c4, newton) took 2x the time and 3x the strain.
+  const bool again = warm && max_iterations == 1;
   if (!again) pass_g0_ = g0;
   const double scale = again ? std::max(g0, pass_g0_) : g0;
   // ||g|| is only known to the round-off of its terms (M v, and b h f with an
