@@ -405,9 +405,9 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
     // changes little from step to step; implicit_euler's dv_ does the same):
     // ~35% fewer CG iterations on the hanging cloth. With block Jacobi, from
     // where the last two (at this b h) were heading, as implicit_euler does:
-    // the floor scene 27.7 -> 21.8 CG iterations a one-pass step. Not with multigrid,
-    // whose V-cycle takes its smooth error out anyway and got 3.2 -> 3.6
-    // iterations a step on hang32 from it. Later ones from zero.
+    // the floor scene 27.7 -> 21.8 CG iterations a one-pass step. Not with
+    // multigrid, whose V-cycle takes that smooth error out anyway (hang32
+    // 3.2 -> 3.6 iterations a step with it). Later ones from zero.
     if (it == 0 && !again && delta_first_.size() == v1.size()) {
       const bool extrapolate = (preconditioner_ == Preconditioner::BlockJacobi ||
                                 preconditioner_ == Preconditioner::None) &&
