@@ -443,8 +443,9 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
       cg_tolerance = std::clamp(eta, settings_.tolerance, kMaxForcing);
     }
     // The first solve of a later pass: to the step's tolerance of the first
-    // pass's ||g|| (not in the refinement, whose decrement stop needs an
-    // accurate direction).
+    // pass's ||g||. Not in implicit_euler's refined steps (one iteration
+    // when its scene asks one, Simulation::refine), whose decrement stop
+    // needs an accurate direction.
     const bool rescaled = it == 0 && again && decrement_stop_ == 0.0 && !energy_stop_;
     if (rescaled) {
       cg_tolerance =
