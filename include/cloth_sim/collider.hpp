@@ -74,6 +74,7 @@ struct CollidersOverStep {
   const std::vector<Collider>* colliders = nullptr;
   std::vector<Pose> start, end;
   double thickness = 0.0;
+  double friction_smoothing = 0.0;  ///< m/s; 0: exact stick/slip (Scene::Contact)
   bool empty() const { return !colliders || colliders->empty(); }
 };
 

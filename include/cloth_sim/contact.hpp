@@ -9,6 +9,10 @@
 //    moving with the collider's surface;
 //  - friction: a sliding node feels mu times its normal force against its
 //    slip, the normal force lagged from the previous pass of the same step.
+//    With a friction smoothing eps > 0 (contact.friction_smoothing) no node
+//    sticks: friction is mu f_n f1(|s|) against the slip s, with IPC's f1
+//    rising smoothly from 0 to 1 over |s| < eps (Li et al. 2020), so a
+//    small slip changes the force a little instead of switching a state.
 // After each solve `update` checks the answer against Coulomb's law and the
 // colliders (adhesion released, stick/slip switched, new contacts added);
 // the step is solved again until nothing changes. With no colliders none of
@@ -48,6 +52,9 @@ class ContactSet {
   static constexpr double kFrictionLag = 0.1;
   /// ... and its direction turn by this many radians.
   static constexpr double kDirectionLag = 0.05;
+  /// IPC's smoothed Coulomb sign: f1(s) = 2 s / eps - s^2 / eps^2 below eps,
+  /// 1 above (eps > 0).
+  static double smoothedSign(double s, double eps);
   /// Passes in which friction is refined: stick/slip switches and the lag of
   /// its magnitude and direction. After them the friction states are kept
   /// as they are (a lag, as IPC's lagged friction has; a node held stuck a
@@ -115,10 +122,19 @@ class ContactSet {
   /// The turn term lets the solve see the direction follow the slip (a
   /// Newton step on it rather than a fixed-point iteration, which crawls
   /// when the friction is large against the mass); without a known slip
-  /// speed (a new slide) it is left out.
+  /// speed (a new slide) it is left out. Smoothed (friction_smoothing eps >
+  /// 0): -cap f1(|s|) s^ linearised at s0, i.e. -cap [(f1(|s0|) + f1'(|s0|)
+  /// (s0^.s - |s0|)) s0^ + f1(|s0|) / |s0| P s] (a drag 2 cap / eps at rest).
   void addFriction(VecX& f, double scale, const VecX& v) const;
-  /// A += scale * cap / |s0| P: minus that force's derivative in v.
-  void addFrictionJacobian(SystemMatrix& A, double scale) const;
+  /// A += scale * cap / |s0| P: minus that force's derivative in v (at v
+  /// when smoothed in Newton's iterates).
+  void addFrictionJacobian(SystemMatrix& A, double scale, const VecX& v) const;
+  /// Smoothed friction (friction_smoothing > 0) in Newton's iterates (on):
+  /// f1's force, its PSD Hessian and its potential f0 exactly at each
+  /// iterate's slip, which Newton's line search then descends; off (a
+  /// linearly implicit step): linearised at the lagged slip s0, and a
+  /// later pass relinearises where the last one ended.
+  void setFrictionAtIterates(bool on) { at_iterate_ = on; }
   /// The potential whose gradient in v is minus that force:
   /// sum of cap s0^.(v - v_s) + cap / (2 |s0|) |P (v - v_s)|^2.
   double frictionPotential(const VecX& v) const;
@@ -202,8 +218,18 @@ class ContactSet {
   bool addPlane(NodeContact& c, int collider, const SurfacePoint& local,
                 const CollidersOverStep& colliders);
   void reindex(int num_nodes);
-  /// cap / |s0| of a sliding node (0 while its slip speed is not known).
-  static double turnStiffness(const NodeContact& c);
+  /// A sliding node's friction linearised at its lagged slip s0, per unit
+  /// of cap: -(base + along (s0^.s - |s0|)) s0^ - across P s.
+  /// Smoothed and solved by Newton (setFrictionAtIterates): linearised at
+  /// s itself, i.e. f1's force exactly.
+  struct FrictionLaw {
+    Vec3 dir = Vec3::Zero();  ///< s0^ (zero when not known)
+    double speed = 0.0;       ///< |s0|
+    double base = 1.0, along = 0.0, across = 0.0;
+  };
+  FrictionLaw law(const NodeContact& c, const Vec3& s) const;
+  /// That force (N) at slip s.
+  static Vec3 linearFriction(const NodeContact& c, const FrictionLaw& l, const Vec3& s);
   /// Appends a node with no planes yet; returns its slot.
   int addNode(int node, bool sticking);
   /// Whether the node in `slot` (-1: none) has a plane of this collider.
@@ -219,6 +245,8 @@ class ContactSet {
   bool slide_held_pulls_ = false;
   ContactChanges changes_;
   double h_ = 0.0;
+  double smoothing_ = 0.0;  ///< friction smoothing eps (m/s); 0: stick/slip
+  bool at_iterate_ = false;  ///< setFrictionAtIterates
   double max_penetration_ = 0.0;
   std::string failure_;
 };

@@ -111,6 +111,10 @@ struct Scene {
   struct Contact {
     double thickness = 0.002;  ///< m, >= 0: nodes keep this far from every surface
     double friction = 0.3;     ///< Coulomb mu >= 0 (static = kinetic)
+    /// m/s, >= 0. 0: exact stick/slip states. > 0: Coulomb's law smoothed
+    /// below this slip speed (IPC's f1, Li et al. 2020): no sticking state;
+    /// a node under a load inside the cone creeps at a fraction of it.
+    double friction_smoothing = 0.0;
   } contact;
   std::vector<ColliderParams> colliders;  ///< none: no contact code runs
 

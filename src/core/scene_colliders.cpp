@@ -105,9 +105,13 @@ void validateCollider(const ColliderParams& c, const std::string& path) {
 }  // namespace
 
 void readContact(const YAML::Node& contact, const YAML::Node& colliders, Scene* scene) {
-  const Fields f(contact, "contact", {"thickness", "friction"});
+  const Fields f(contact, "contact", {"thickness", "friction", "friction_smoothing"});
   if (f.has("thickness")) scene->contact.thickness = readNumber(f.get("thickness"), f.path("thickness"));
   if (f.has("friction")) scene->contact.friction = readNumber(f.get("friction"), f.path("friction"));
+  if (f.has("friction_smoothing")) {
+    scene->contact.friction_smoothing =
+        readNumber(f.get("friction_smoothing"), f.path("friction_smoothing"));
+  }
   if (!colliders.IsDefined() || colliders.IsNull()) return;
   if (!colliders.IsSequence()) {
     fail("colliders", "expected a list of colliders, got " + describe(colliders));
@@ -138,6 +142,7 @@ void readMoveCollider(const YAML::Node& body, const std::string& action_path, Sc
 void validateContact(const Scene& scene) {
   requireNonNegative(scene.contact.thickness, "contact.thickness");
   requireNonNegative(scene.contact.friction, "contact.friction");
+  requireNonNegative(scene.contact.friction_smoothing, "contact.friction_smoothing");
   std::set<std::string> names;
   for (size_t k = 0; k < scene.colliders.size(); ++k) {
     const ColliderParams& c = scene.colliders[k];

@@ -241,8 +241,9 @@ StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v)
   if (react) rhs0_ = rhs_;
   if (contact_on_) {
     pins_move = contact_.prescribeChange(x, h, v, pinned_dv_);
+    contact_.setFrictionAtIterates(false);
     contact_.addFriction(rhs_, h, v);  // at v0; its turn term in A acts on dv
-    contact_.addFrictionJacobian(A_, h);
+    contact_.addFrictionJacobian(A_, h, v);
   }
   for (size_t k = 0; k < pins_->nodes.size(); ++k) {
     if (yieldsToContact(k)) continue;
@@ -350,7 +351,10 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
       v1.segment<3>(3 * p) = w;
     }
   }
-  if (contact_on_) contact_.prescribe(ax_, bh, v1);
+  if (contact_on_) {
+    contact_.prescribe(ax_, bh, v1);
+    contact_.setFrictionAtIterates(true);
+  }
   v_start_ = v1;
   // Every iterate's forces come from one evaluation: the assembly gives f at
   // the start, the line search's accepted trial the g of the next iterate.
@@ -366,7 +370,7 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
   x = ax_ + bh * v1;
   auto assembleIterate = [&] {
     assemble(model, x, v1, bh, bh * bh, nullptr, nullptr, dampingAxes(), false);
-    if (contact_on_) contact_.addFrictionJacobian(A_, bh);
+    if (contact_on_) contact_.addFrictionJacobian(A_, bh, v1);
   };
   assembleIterate();
   bool forces_at_v1 = true;  // f_ is f(x, v1): the reaction below reuses it
