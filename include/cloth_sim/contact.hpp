@@ -226,6 +226,8 @@ class ContactSet {
     Vec3 dir = Vec3::Zero();  ///< s0^ (zero when not known)
     double speed = 0.0;       ///< |s0|
     double base = 1.0, along = 0.0, across = 0.0;
+    bool exact = false;  ///< exact Coulomb with a known slip speed
+    double turn = 0.0;   ///< then cap / max(|s0|, kStopSpeed)
   };
   FrictionLaw law(const NodeContact& c, const Vec3& s) const;
   /// That force (N) at slip s.

@@ -288,13 +288,20 @@ ContactSet::FrictionLaw ContactSet::law(const NodeContact& c, const Vec3& s) con
     // it rejected 13-23 steps where f1' rejects none.
     l.along = l.speed < smoothing_ ? 2.0 * (1.0 - l.speed / smoothing_) / smoothing_ : 0.0;
   } else if (l.speed > 0.0) {
+    l.exact = true;
     l.across = 1.0 / std::max(l.speed, kStopSpeed);
+    l.turn = c.friction / std::max(l.speed, kStopSpeed);  // cap / |s0|, as before
   }
   return l;
 }
 
 Vec3 ContactSet::linearFriction(const NodeContact& c, const FrictionLaw& l, const Vec3& s) {
   const double along = l.dir.dot(s);
+  if (l.exact) {  // exact Coulomb: the turn term only
+    Vec3 force = -c.friction * l.dir;
+    if (l.turn > 0.0) force -= l.turn * (s - l.dir * along);
+    return force;
+  }
   return -c.friction *
          ((l.base + l.along * (along - l.speed)) * l.dir + l.across * (s - l.dir * along));
 }
@@ -314,6 +321,10 @@ void ContactSet::addFrictionJacobian(SystemMatrix& A, double scale, const VecX& 
         law(c, slipOf(c.tangent, v.segment<3>(3 * c.node), c.surface_velocity));
     if (l.along == 0.0 && l.across == 0.0) continue;
     const Mat3 along = l.dir * l.dir.transpose();
+    if (smoothing_ <= 0.0) {
+      A.addNodeBlock(c.node, (scale * l.turn) * (c.tangent - along));
+      continue;
+    }
     A.addNodeBlock(c.node, (scale * c.friction) *
                                (l.along * along + l.across * (c.tangent - along)));
   }
@@ -332,6 +343,10 @@ double ContactSet::frictionPotential(const VecX& v) const {
     const FrictionLaw l = law(c, s);
     const double along = l.dir.dot(s);
     const Vec3 turn = s - l.dir * along;
+    if (smoothing_ <= 0.0) {
+      sum += c.friction * along + 0.5 * l.turn * turn.squaredNorm();
+      continue;
+    }
     sum += c.friction * ((l.base - l.along * l.speed) * along + 0.5 * l.along * along * along +
                          0.5 * l.across * turn.squaredNorm());
   }
