@@ -218,16 +218,17 @@ class ContactSet {
   bool addPlane(NodeContact& c, int collider, const SurfacePoint& local,
                 const CollidersOverStep& colliders);
   void reindex(int num_nodes);
-  /// A sliding node's friction linearised at its lagged slip s0, per unit
-  /// of cap: -(base + along (s0^.s - |s0|)) s0^ - across P s.
-  /// Smoothed and solved by Newton (setFrictionAtIterates): linearised at
-  /// s itself, i.e. f1's force exactly.
+  /// A sliding node's friction linearised at its lagged slip s0:
+  /// -cap (base + along (s0^.s - |s0|)) s0^ - turn P s, P = T - s0^ s0^T.
+  /// Exact Coulomb: base 1, along 0, turn cap / max(|s0|, kStopSpeed).
+  /// Smoothed: base f1(|s0|), along f1'(|s0|), turn cap f1(|s0|) / |s0|;
+  /// in Newton's iterates (setFrictionAtIterates) s0 is s itself, so the
+  /// force is f1's exactly.
   struct FrictionLaw {
     Vec3 dir = Vec3::Zero();  ///< s0^ (zero when not known)
     double speed = 0.0;       ///< |s0|
-    double base = 1.0, along = 0.0, across = 0.0;
-    bool exact = false;  ///< exact Coulomb with a known slip speed
-    double turn = 0.0;   ///< then cap / max(|s0|, kStopSpeed)
+    double base = 1.0, along = 0.0;  ///< per unit of cap
+    double turn = 0.0;               ///< N s/m
   };
   FrictionLaw law(const NodeContact& c, const Vec3& s) const;
   /// That force (N) at slip s.

@@ -174,7 +174,8 @@ void ContactSet::begin(const CollidersOverStep& colliders, const ConstraintFilte
       const auto hit = firstContact(all[k], colliders.start[k], colliders.end[k], p0, p1,
                                     thickness, kPenetrationTolerance);
       if (!hit) continue;
-      const int slot = slot_[i] >= 0 ? slot_[i] : addNode(i, smoothing_ <= 0.0 && all[k].friction() > 0.0);
+      const bool sticks = smoothing_ <= 0.0 && all[k].friction() > 0.0;
+      const int slot = slot_[i] >= 0 ? slot_[i] : addNode(i, sticks);
       if (!addPlane(nodes_[slot], id, hit->local, colliders)) {
         // No room on the prediction: keep the first plane, update() decides.
         failure_.clear();
@@ -279,7 +280,7 @@ ContactSet::FrictionLaw ContactSet::law(const NodeContact& c, const Vec3& s) con
   if (smoothing_ > 0.0) {
     // f1 and its slope at |s0|; at 0 both ways are the drag 2 / eps.
     l.base = smoothedSign(l.speed, smoothing_);
-    l.across = l.speed > 0.0 ? l.base / l.speed : 2.0 / smoothing_;
+    l.turn = c.friction * (l.speed > 0.0 ? l.base / l.speed : 2.0 / smoothing_);
     // f1' (its exact Hessian, PSD). Tried: the drag f1 / |s| along the
     // slip (a quadratic above f0, concave in |s|^2), everywhere or while
     // sliding. It ends the 2-cycle Newton can fall into when a slide stops
@@ -288,22 +289,17 @@ ContactSet::FrictionLaw ContactSet::law(const NodeContact& c, const Vec3& s) con
     // it rejected 13-23 steps where f1' rejects none.
     l.along = l.speed < smoothing_ ? 2.0 * (1.0 - l.speed / smoothing_) / smoothing_ : 0.0;
   } else if (l.speed > 0.0) {
-    l.exact = true;
-    l.across = 1.0 / std::max(l.speed, kStopSpeed);
-    l.turn = c.friction / std::max(l.speed, kStopSpeed);  // cap / |s0|, as before
+    l.turn = c.friction / std::max(l.speed, kStopSpeed);
   }
   return l;
 }
 
 Vec3 ContactSet::linearFriction(const NodeContact& c, const FrictionLaw& l, const Vec3& s) {
   const double along = l.dir.dot(s);
-  if (l.exact) {  // exact Coulomb: the turn term only
-    Vec3 force = -c.friction * l.dir;
-    if (l.turn > 0.0) force -= l.turn * (s - l.dir * along);
-    return force;
-  }
-  return -c.friction *
-         ((l.base + l.along * (along - l.speed)) * l.dir + l.across * (s - l.dir * along));
+  // (Exact Coulomb's terms as they always were: base 1 and along 0 add zeros.)
+  Vec3 force = -c.friction * ((l.base + l.along * (along - l.speed)) * l.dir);
+  if (l.turn > 0.0) force -= l.turn * (s - l.dir * along);
+  return force;
 }
 
 void ContactSet::addFriction(VecX& f, double scale, const VecX& v) const {
@@ -319,14 +315,10 @@ void ContactSet::addFrictionJacobian(SystemMatrix& A, double scale, const VecX& 
     if (c.sticking || c.friction <= 0.0) continue;
     const FrictionLaw l =
         law(c, slipOf(c.tangent, v.segment<3>(3 * c.node), c.surface_velocity));
-    if (l.along == 0.0 && l.across == 0.0) continue;
+    if (l.along == 0.0 && l.turn == 0.0) continue;
     const Mat3 along = l.dir * l.dir.transpose();
-    if (smoothing_ <= 0.0) {
-      A.addNodeBlock(c.node, (scale * l.turn) * (c.tangent - along));
-      continue;
-    }
-    A.addNodeBlock(c.node, (scale * c.friction) *
-                               (l.along * along + l.across * (c.tangent - along)));
+    A.addNodeBlock(c.node, (scale * c.friction * l.along) * along +
+                               (scale * l.turn) * (c.tangent - along));
   }
 }
 
@@ -343,12 +335,8 @@ double ContactSet::frictionPotential(const VecX& v) const {
     const FrictionLaw l = law(c, s);
     const double along = l.dir.dot(s);
     const Vec3 turn = s - l.dir * along;
-    if (smoothing_ <= 0.0) {
-      sum += c.friction * along + 0.5 * l.turn * turn.squaredNorm();
-      continue;
-    }
-    sum += c.friction * ((l.base - l.along * l.speed) * along + 0.5 * l.along * along * along +
-                         0.5 * l.across * turn.squaredNorm());
+    sum += c.friction * ((l.base - l.along * l.speed) * along + 0.5 * l.along * along * along) +
+           0.5 * l.turn * turn.squaredNorm();
   }
   return sum;
 }
@@ -528,7 +516,8 @@ ContactCheck ContactSet::update(const CollidersOverStep& colliders, const Constr
       }
       if (!hit) continue;
       ++changes_.added;
-      const int s = slot_[i] >= 0 ? slot_[i] : addNode(i, smoothing_ <= 0.0 && all[k].friction() > 0.0);
+      const bool sticks = smoothing_ <= 0.0 && all[k].friction() > 0.0;
+      const int s = slot_[i] >= 0 ? slot_[i] : addNode(i, sticks);
       NodeContact& c = nodes_[s];
       if (std::find(released_.begin(), released_.end(), i) != released_.end()) c.held = true;
       if (own) {  // re-linearise its own plane where it ended

@@ -4,6 +4,7 @@
 #include <optional>
 #include <random>
 
+#include "cloth_sim/collider.hpp"
 #include "cloth_sim/model.hpp"
 #include "cloth_sim/scene.hpp"
 
@@ -32,6 +33,22 @@ inline ColliderParams floorPlane(std::optional<double> mu = std::nullopt) {
   p.friction = mu;
   return p;
 }
+
+/// The floor plane (friction mu), still over a step, for driving a
+/// ContactSet by hand. Not copyable: `over` points at `colliders`.
+struct StillFloor {
+  std::vector<Collider> colliders;
+  CollidersOverStep over;
+  StillFloor(double mu, double thickness, double friction_smoothing = 0.0)
+      : colliders{Collider::fromParams(floorPlane(mu), mu)} {
+    over.colliders = &colliders;
+    over.start = over.end = {Pose{}};
+    over.thickness = thickness;
+    over.friction_smoothing = friction_smoothing;
+  }
+  StillFloor(const StillFloor&) = delete;
+  StillFloor& operator=(const StillFloor&) = delete;
+};
 
 inline void enable(Scene& s, SpringType type, double stiffness, double damping) {
   auto& g = s.springs[static_cast<int>(type)];

@@ -364,11 +364,8 @@ TEST(Contact, ResetRestoresColliders) {
 // cloth's node onto a table's edge against its springs (c4 at newton, dt
 // 0.1: 1.5e-3 J gained at every halving).
 TEST(ContactSetPasses, ANodeBackAfterItsReleaseIsHeldAndSlidesWhereItPullsOnARetry) {
-  const std::vector<Collider> colliders = {Collider::fromParams(floorPlane(0.5), 0.5)};
-  CollidersOverStep over;
-  over.colliders = &colliders;
-  over.start = over.end = {Pose{}};
-  over.thickness = kThickness;
+  const test::StillFloor floor(0.5, kThickness);
+  const CollidersOverStep& over = floor.over;
   const ConstraintFilter pins(std::vector<char>{1});
   const std::vector<double> mass = {1.0};
   const double h = 0.01;

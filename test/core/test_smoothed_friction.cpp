@@ -104,12 +104,8 @@ TEST(SmoothedFriction, BeyondTheConeAParticleSlidesAsUnderCoulomb) {
 // gradient, and the matrix block minus the force's derivative, checked
 // against central differences at slips below, near and above eps.
 TEST(SmoothedFriction, ForceAndJacobianMatchTheirPotential) {
-  const std::vector<Collider> colliders = {Collider::fromParams(floorPlane(0.5), 0.5)};
-  CollidersOverStep over;
-  over.colliders = &colliders;
-  over.start = over.end = {Pose{}};
-  over.thickness = kThickness;
-  over.friction_smoothing = kEps;
+  const test::StillFloor floor(0.5, kThickness, kEps);
+  const CollidersOverStep& over = floor.over;
   const ConstraintFilter pins(std::vector<char>{1});
   const std::vector<double> mass = {0.01};
   const double h = 0.01;
