@@ -127,14 +127,28 @@ class ContactSet {
   /// (s0^.s - |s0|)) s0^ + f1(|s0|) / |s0| P s] (a drag 2 cap / eps at rest).
   void addFriction(VecX& f, double scale, const VecX& v) const;
   /// A += scale * cap / |s0| P: minus that force's derivative in v (at v
-  /// when smoothed in Newton's iterates).
+  /// when smoothed in Newton's iterates; see FrictionSolve).
   void addFrictionJacobian(SystemMatrix& A, double scale, const VecX& v) const;
-  /// Smoothed friction (friction_smoothing > 0) in Newton's iterates (on):
-  /// f1's force, its PSD Hessian and its potential f0 exactly at each
-  /// iterate's slip, which Newton's line search then descends; off (a
-  /// linearly implicit step): linearised at the lagged slip s0, and a
-  /// later pass relinearises where the last one ended.
-  void setFrictionAtIterates(bool on) { at_iterate_ = on; }
+  /// How a solve takes smoothed friction (friction_smoothing > 0; exact
+  /// Coulomb is always linearised at s0).
+  enum class FrictionSolve {
+    /// A linearly implicit step: linearised at the lagged slip s0; a later
+    /// pass relinearises where the last one ended.
+    Linearized,
+    /// Newton to a tolerance: f1's force, its potential f0 and its PSD
+    /// Hessian exactly at each iterate's slip (f1' along it).
+    Newton,
+    /// Newton stopped on a decrement or the energy check (implicit_euler's
+    /// refined steps): the same force and potential, and along the slip the
+    /// drag f1(|s|) / |s| instead of f1', a quadratic above f0 (concave in
+    /// |s|^2), so each full step lowers the potential even where a slide
+    /// stops. f1' overshoots there (0 beyond eps): the fold demo at stretch
+    /// 2800 stalled at ||g|| 8.7e-4 for 4 iterations and was halved. To a
+    /// tolerance the drag converges only linearly (contact hard case c4
+    /// under newton: 1687 rejected sub-steps where f1' has none).
+    Descent,
+  };
+  void setFrictionSolve(FrictionSolve mode) { friction_solve_ = mode; }
   /// The potential whose gradient in v is minus that force:
   /// sum of cap s0^.(v - v_s) + cap / (2 |s0|) |P (v - v_s)|^2.
   double frictionPotential(const VecX& v) const;
@@ -222,7 +236,7 @@ class ContactSet {
   /// -cap (base + along (s0^.s - |s0|)) s0^ - turn P s, P = T - s0^ s0^T.
   /// Exact Coulomb: base 1, along 0, turn cap / max(|s0|, kStopSpeed).
   /// Smoothed: base f1(|s0|), along f1'(|s0|), turn cap f1(|s0|) / |s0|;
-  /// in Newton's iterates (setFrictionAtIterates) s0 is s itself, so the
+  /// in Newton's iterates (setFrictionSolve) s0 is s itself, so the
   /// force is f1's exactly.
   struct FrictionLaw {
     Vec3 dir = Vec3::Zero();  ///< s0^ (zero when not known)
@@ -249,7 +263,7 @@ class ContactSet {
   ContactChanges changes_;
   double h_ = 0.0;
   double smoothing_ = 0.0;  ///< friction smoothing eps (m/s); 0: stick/slip
-  bool at_iterate_ = false;  ///< setFrictionAtIterates
+  FrictionSolve friction_solve_ = FrictionSolve::Linearized;
   double max_penetration_ = 0.0;
   std::string failure_;
 };

@@ -274,20 +274,20 @@ double ContactSet::smoothedSign(double s, double eps) {
 
 ContactSet::FrictionLaw ContactSet::law(const NodeContact& c, const Vec3& s) const {
   FrictionLaw l;
-  const bool here = smoothing_ > 0.0 && at_iterate_;
+  const bool here = smoothing_ > 0.0 && friction_solve_ != FrictionSolve::Linearized;
   l.speed = here ? s.norm() : c.slip_speed;
   l.dir = here ? (l.speed > 0.0 ? Vec3(s / l.speed) : Vec3::Zero()) : c.slip;
   if (smoothing_ > 0.0) {
     // f1 and its slope at |s0|; at 0 both ways are the drag 2 / eps.
     l.base = smoothedSign(l.speed, smoothing_);
     l.turn = c.friction * (l.speed > 0.0 ? l.base / l.speed : 2.0 / smoothing_);
-    // f1' (its exact Hessian, PSD). Tried: the drag f1 / |s| along the
-    // slip (a quadratic above f0, concave in |s|^2), everywhere or while
-    // sliding. It ends the 2-cycle Newton can fall into when a slide stops
-    // within a step (a particle on a tilted plane, its landing step: 20
-    // iterations, then halved), but on the stiffened cloth on a table (c4)
-    // it rejected 13-23 steps where f1' rejects none.
-    l.along = l.speed < smoothing_ ? 2.0 * (1.0 - l.speed / smoothing_) / smoothing_ : 0.0;
+    // Along the slip f1' (the exact Hessian), or in a descent the drag
+    // (FrictionSolve).
+    if (friction_solve_ == FrictionSolve::Descent) {
+      l.along = l.turn / c.friction;
+    } else {
+      l.along = l.speed < smoothing_ ? 2.0 * (1.0 - l.speed / smoothing_) / smoothing_ : 0.0;
+    }
   } else if (l.speed > 0.0) {
     l.turn = c.friction / std::max(l.speed, kStopSpeed);
   }
@@ -327,7 +327,7 @@ double ContactSet::frictionPotential(const VecX& v) const {
   for (const NodeContact& c : nodes_) {
     if (c.sticking || c.friction <= 0.0) continue;
     const Vec3 s = slipOf(c.tangent, v.segment<3>(3 * c.node), c.surface_velocity);
-    if (smoothing_ > 0.0 && at_iterate_) {  // f0, f0' = f1
+    if (smoothing_ > 0.0 && friction_solve_ != FrictionSolve::Linearized) {  // f0, f0' = f1
       const double y = s.norm(), eps = smoothing_;
       sum += c.friction * (y >= eps ? y - eps / 3.0 : y * y / eps - y * y * y / (3.0 * eps * eps));
       continue;

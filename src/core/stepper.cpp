@@ -241,7 +241,7 @@ StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v)
   if (react) rhs0_ = rhs_;
   if (contact_on_) {
     pins_move = contact_.prescribeChange(x, h, v, pinned_dv_);
-    contact_.setFrictionAtIterates(false);
+    contact_.setFrictionSolve(ContactSet::FrictionSolve::Linearized);
     contact_.addFriction(rhs_, h, v);  // at v0; its turn term in A acts on dv
     contact_.addFrictionJacobian(A_, h, v);
   }
@@ -353,7 +353,9 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
   }
   if (contact_on_) {
     contact_.prescribe(ax_, bh, v1);
-    contact_.setFrictionAtIterates(true);
+    contact_.setFrictionSolve(decrement_stop_ > 0.0 || energy_stop_
+                                  ? ContactSet::FrictionSolve::Descent
+                                  : ContactSet::FrictionSolve::Newton);
   }
   v_start_ = v1;
   // Every iterate's forces come from one evaluation: the assembly gives f at

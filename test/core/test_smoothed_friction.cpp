@@ -118,7 +118,7 @@ TEST(SmoothedFriction, ForceAndJacobianMatchTheirPotential) {
   // A pass that pressed with 2 N: friction's cap mu f_n = 1 N from now on.
   const VecX reaction = h * Vec3(0.0, 0.0, 2.0);
   contacts.update(over, pins, mass, x0, x0, VecX::Zero(3), reaction, h, gravity, 1e-12);
-  contacts.setFrictionAtIterates(true);
+  contacts.setFrictionSolve(ContactSet::FrictionSolve::Newton);
   for (const Vec3 slip : {Vec3(0.3 * kEps, 0.2 * kEps, 0.0), Vec3(0.9 * kEps, -0.1 * kEps, 0.0),
                           Vec3(4.0 * kEps, 1.0 * kEps, 0.0)}) {
     const VecX v = slip + Vec3(0.0, 0.0, 0.7);  // the normal part is not friction's
@@ -143,6 +143,46 @@ TEST(SmoothedFriction, ForceAndJacobianMatchTheirPotential) {
       const Vec3 Ae = A.nodeBlocks()[0].second * Vec3(Vec3::Unit(k));
       EXPECT_LT((column - Ae).norm(), 1e-5 * (2.0 / kEps)) << "column " << k;
     }
+    // A descent (a solve stopped on a decrement) takes the same force, and
+    // in the matrix the drag f1 / |s| on the whole tangent plane: at least
+    // the derivative along the slip (f1' <= f1 / |s|), equal to it across.
+    contacts.setFrictionSolve(ContactSet::FrictionSolve::Descent);
+    VecX f_descent = VecX::Zero(3);
+    contacts.addFriction(f_descent, 1.0, v);
+    EXPECT_LT((f_descent - f).norm(), 1e-12);
+    SystemMatrix D;
+    contacts.addFrictionJacobian(D, 1.0, v);
+    ASSERT_EQ(D.nodeBlocks().size(), 1u);
+    const Mat3 drag = D.nodeBlocks()[0].second.toMat3();
+    const double s = slip.norm(), coefficient = ContactSet::smoothedSign(s, kEps) / s;
+    const Mat3 tangent = Vec3(1.0, 1.0, 0.0).asDiagonal();
+    EXPECT_LT((drag - coefficient * tangent).norm(), 1e-9 * coefficient);
+    const Mat3 exact = A.nodeBlocks()[0].second.toMat3();
+    const Vec3 along = slip / s;
+    EXPECT_LE(along.dot(exact * along), along.dot(drag * along) * (1.0 + 1e-12));
+    contacts.setFrictionSolve(ContactSet::FrictionSolve::Newton);
+  }
+}
+
+// The fold demo with smoothed friction: its towel at rest takes one
+// contact pass a step where exact Coulomb takes three (the stick/slip
+// chatter of its table contacts), and its stretch-2800 variant lays the
+// towel without a rejected step (with f1' in the refined steps' Newton
+// instead of the drag, it stalled stopping sliding nodes and was halved).
+TEST(SmoothedFriction, FoldedTowelAtRestTakesOnePassAStep) {
+  for (double stretch : {3000.0, 2800.0}) {
+    Scene s = loadScene(std::string(CLOTH_SIM_SOURCE_DIR) + "/config/scenes/fold.yaml");
+    s.contact.friction_smoothing = kEps;
+    s.springs[static_cast<int>(SpringType::Stretch)].stiffness = stretch;
+    Simulation sim(s);
+    long rest_passes = 0, rest_steps = 0;
+    while (sim.time() < 4.0 - 1e-9) {
+      const StepStats st = sim.step();
+      ASSERT_TRUE(st.ok) << st.failure;
+      EXPECT_EQ(st.rejected, 0) << "stretch " << stretch << " t = " << sim.time();
+      if (sim.time() > 3.0) rest_passes += st.contact_passes, ++rest_steps;
+    }
+    EXPECT_LT(static_cast<double>(rest_passes) / rest_steps, 1.2) << "stretch " << stretch;
   }
 }
 
