@@ -280,11 +280,12 @@ ContactSet::FrictionLaw ContactSet::law(const NodeContact& c, const Vec3& s) con
   if (smoothing_ > 0.0) {
     // f1 and its slope at |s0|; at 0 both ways are the drag 2 / eps.
     l.base = smoothedSign(l.speed, smoothing_);
-    l.turn = c.friction * (l.speed > 0.0 ? l.base / l.speed : 2.0 / smoothing_);
+    const double drag = l.speed > 0.0 ? l.base / l.speed : 2.0 / smoothing_;
+    l.turn = c.friction * drag;
     // Along the slip f1' (the exact Hessian), or in a descent the drag
     // (FrictionSolve).
     if (friction_solve_ == FrictionSolve::Descent) {
-      l.along = l.turn / c.friction;
+      l.along = drag;
     } else {
       l.along = l.speed < smoothing_ ? 2.0 * (1.0 - l.speed / smoothing_) / smoothing_ : 0.0;
     }
