@@ -79,6 +79,9 @@ class Stepper {
   /// them over the step; implicit_euler solves again while its answer
   /// changes their active set (SelfRepulsion::updateActiveSet).
   void setRepulsion(SelfRepulsion* repulsion) { repulsion_ = repulsion; }
+  /// Whether a newton solve may go on with the exact Hessian once it
+  /// converges (see newtonSolve); the default yes, no with self-collision.
+  void setExactLocalPhase(bool on) { exact_local_phase_ = on; }
   /// f(x, v): the model's forces (computeForces) plus the repulsion's.
   void forces(const Model& model, const VecX& x, const VecX& v, VecX& f,
               const std::vector<Vec3>* damping_axes = nullptr) const;
@@ -193,6 +196,9 @@ class Stepper {
   double bh_of_first_ = 0.0, bh_of_first_before_ = 0.0;
   double pass_g0_ = 0.0;  ///< ||g|| at the first pass's start: later passes' scale
   std::vector<Vec3> damping_axes_;  ///< along-spring damping axes held over a Newton step
+  /// newtonSolve's local phase: assemble without the compression projection.
+  bool exact_hessian_ = false;
+  bool exact_local_phase_ = true;  ///< setExactLocalPhase
   bool axes_held_ = false;        ///< damping_axes_ hold for the last step
   double decrement_stop_ = 0.0;    ///< setDecrementStop
   std::function<bool(const VecX&, const VecX&)> energy_stop_;  ///< setEnergyStop

@@ -77,6 +77,7 @@ void Simulation::reset() {
   work_in_total_ = 0.0;
   last_stats_ = StepStats();
   stepper_ = Stepper(scene_.solver);
+  stepper_.setExactLocalPhase(!scene_.self_collision.enabled);
   colliders_.clear();
   collider_states_.clear();
   for (const ColliderParams& params : scene_.colliders) {
@@ -645,6 +646,7 @@ Status Simulation::retune(const Tuning& tuning) {
   if (!sameSolver(scene_.solver, tuning.solver)) {
     scene_.solver = tuning.solver;
     stepper_ = Stepper(scene_.solver);
+    stepper_.setExactLocalPhase(!scene_.self_collision.enabled);
     resetStepControl();
   }
   measureState();
