@@ -104,10 +104,8 @@ struct CgWorkspace {
   int fresh_factor_solves = 0;
   /// Cholesky factors of the rerouted matrix (CholeskyFactor), and how many
   /// factors are left to make of A itself after the rerouted one did not pay.
-  /// Only for implicit_euler: newton and bdf2 solve crumpled starts to tight
-  /// tolerances, where the rerouted factor leaves different near-null-space
-  /// errors and their Newton paths (hence rejections) change (a collapsed
-  /// start with newton: 226 rejected sub-steps instead of 39).
+  /// The steppers set it (every method since session 35: the hard cases
+  /// under newton and bdf2 took 78 s where 122).
   bool reroute_bends = false;
   int plain_factors = 0;
 };

@@ -72,7 +72,7 @@ void Stepper::setPins(const Model& model, const PinnedEnds& pins) {
   pins_ = &pins;
   cg_.grid_rows = model.rows;
   cg_.grid_cols = model.cols;
-  cg_.reroute_bends = settings_.method == Method::ImplicitEuler;
+  cg_.reroute_bends = true;
   cg_.multigrid_max_solves = settings_.multigrid_reuse;
 }
 
