@@ -245,6 +245,13 @@ class ContactSet {
     double turn = 0.0;               ///< N s/m
   };
   FrictionLaw law(const NodeContact& c, const Vec3& s) const;
+  /// A new contact starts stuck under exact Coulomb with friction; smoothed
+  /// friction has no stick state.
+  bool sticksOnArrival(double friction) const { return smoothing_ <= 0.0 && friction > 0.0; }
+  /// Smoothed friction taken at each Newton iterate's own slip (FrictionSolve).
+  bool smoothedAtIterate() const {
+    return smoothing_ > 0.0 && friction_solve_ != FrictionSolve::Linearized;
+  }
   /// That force (N) at slip s.
   static Vec3 linearFriction(const NodeContact& c, const FrictionLaw& l, const Vec3& s);
   /// Appends a node with no planes yet; returns its slot.

@@ -163,6 +163,9 @@ class Simulation {
   void saveCheckpoint();
   void restoreCheckpoint();
   void resetStepControl();
+  /// A fresh stepper for scene_.solver (newton's exact local phase off
+  /// with self-collision: Stepper::setExactLocalPhase).
+  void rebuildStepper();
   /// Stats of several steps with the state's figures at their end.
   StepStats finish(StepStats total);
   Status applyEvent(const SceneEvent& event);

@@ -174,8 +174,7 @@ void ContactSet::begin(const CollidersOverStep& colliders, const ConstraintFilte
       const auto hit = firstContact(all[k], colliders.start[k], colliders.end[k], p0, p1,
                                     thickness, kPenetrationTolerance);
       if (!hit) continue;
-      const bool sticks = smoothing_ <= 0.0 && all[k].friction() > 0.0;
-      const int slot = slot_[i] >= 0 ? slot_[i] : addNode(i, sticks);
+      const int slot = slot_[i] >= 0 ? slot_[i] : addNode(i, sticksOnArrival(all[k].friction()));
       if (!addPlane(nodes_[slot], id, hit->local, colliders)) {
         // No room on the prediction: keep the first plane, update() decides.
         failure_.clear();
@@ -274,7 +273,7 @@ double ContactSet::smoothedSign(double s, double eps) {
 
 ContactSet::FrictionLaw ContactSet::law(const NodeContact& c, const Vec3& s) const {
   FrictionLaw l;
-  const bool here = smoothing_ > 0.0 && friction_solve_ != FrictionSolve::Linearized;
+  const bool here = smoothedAtIterate();
   l.speed = here ? s.norm() : c.slip_speed;
   l.dir = here ? (l.speed > 0.0 ? Vec3(s / l.speed) : Vec3::Zero()) : c.slip;
   if (smoothing_ > 0.0) {
@@ -328,7 +327,7 @@ double ContactSet::frictionPotential(const VecX& v) const {
   for (const NodeContact& c : nodes_) {
     if (c.sticking || c.friction <= 0.0) continue;
     const Vec3 s = slipOf(c.tangent, v.segment<3>(3 * c.node), c.surface_velocity);
-    if (smoothing_ > 0.0 && friction_solve_ != FrictionSolve::Linearized) {  // f0, f0' = f1
+    if (smoothedAtIterate()) {  // f0, f0' = f1
       const double y = s.norm(), eps = smoothing_;
       sum += c.friction * (y >= eps ? y - eps / 3.0 : y * y / eps - y * y * y / (3.0 * eps * eps));
       continue;
@@ -517,8 +516,7 @@ ContactCheck ContactSet::update(const CollidersOverStep& colliders, const Constr
       }
       if (!hit) continue;
       ++changes_.added;
-      const bool sticks = smoothing_ <= 0.0 && all[k].friction() > 0.0;
-      const int s = slot_[i] >= 0 ? slot_[i] : addNode(i, sticks);
+      const int s = slot_[i] >= 0 ? slot_[i] : addNode(i, sticksOnArrival(all[k].friction()));
       NodeContact& c = nodes_[s];
       if (std::find(released_.begin(), released_.end(), i) != released_.end()) c.held = true;
       if (own) {  // re-linearise its own plane where it ended

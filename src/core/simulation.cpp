@@ -76,8 +76,7 @@ void Simulation::reset() {
   next_event_ = 0;
   work_in_total_ = 0.0;
   last_stats_ = StepStats();
-  stepper_ = Stepper(scene_.solver);
-  stepper_.setExactLocalPhase(!scene_.self_collision.enabled);
+  rebuildStepper();
   colliders_.clear();
   collider_states_.clear();
   for (const ColliderParams& params : scene_.colliders) {
@@ -608,6 +607,11 @@ bool sameSolver(const Scene::Solver& a, const Scene::Solver& b) {
 }
 }  // namespace
 
+void Simulation::rebuildStepper() {
+  stepper_ = Stepper(scene_.solver);
+  stepper_.setExactLocalPhase(!scene_.self_collision.enabled);
+}
+
 Status Simulation::retune(const Tuning& tuning) {
   Scene candidate = scene_;
   candidate.springs = tuning.springs;
@@ -645,8 +649,7 @@ Status Simulation::retune(const Tuning& tuning) {
   scene_.air_drag = tuning.air_drag;
   if (!sameSolver(scene_.solver, tuning.solver)) {
     scene_.solver = tuning.solver;
-    stepper_ = Stepper(scene_.solver);
-    stepper_.setExactLocalPhase(!scene_.self_collision.enabled);
+    rebuildStepper();
     resetStepControl();
   }
   measureState();

@@ -366,8 +366,10 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
   // for the newton method: implicit_euler's refined steps (a decrement
   // stop; accepted on energy) and bdf2's backward-Euler retries keep the
   // turning axis and their methods' answers.
+  const bool backward_euler_to_tolerance =
+      settings_.method == Method::Newton && beta == 1.0 && decrement_stop_ == 0.0;
   axes_held_ = model.damping_model == DampingModel::AlongSpring && hasSpringDamping(model) &&
-                 settings_.method == Method::Newton && beta == 1.0 && decrement_stop_ == 0.0;
+               backward_euler_to_tolerance;
   if (axes_held_) springAxes(model, x, damping_axes_);
   x = ax_ + bh * v1;
   // Projected Newton converges only linearly where springs stay compressed
@@ -386,8 +388,7 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
   // with self-collision (setExactLocalPhase): the heap (hard case s1) then
   // found answers strained 11-12 % at its impact where 5 %.
   bool exact_allowed = exact_local_phase_ && settings_.project_compression &&
-                       settings_.method == Method::Newton && beta == 1.0 && max_iterations > 1 &&
-                       decrement_stop_ == 0.0 && !energy_stop_;
+                       backward_euler_to_tolerance && max_iterations > 1 && !energy_stop_;
   exact_hessian_ = false;
   auto assembleIterate = [&] {
     assemble(model, x, v1, bh, bh * bh, nullptr, nullptr, dampingAxes(), false);
@@ -535,10 +536,10 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
     g_.swap(g_best_);
     // The quadratic model held (a full step, ||g|| halved): exact from here;
     // otherwise, in exact mode: projected for the rest of the solve.
-    if (exact_hessian_ && (alpha < 1.0 || !(best_norm <= 0.5 * g_norm))) {
+    const bool model_held = alpha == 1.0 && best_norm <= 0.5 * g_norm;
+    if (exact_hessian_ && !model_held) {
       exact_hessian_ = exact_allowed = false;
-    }
-    if (exact_allowed && !exact_hessian_ && alpha == 1.0 && best_norm <= 0.5 * g_norm) {
+    } else if (exact_allowed && model_held) {
       exact_hessian_ = true;
     }
     g_norm = best_norm;
