@@ -164,7 +164,7 @@ class Simulation {
   void restoreCheckpoint();
   void resetStepControl();
   /// A fresh stepper for scene_.solver (newton's exact local phase off
-  /// with self-collision: Stepper::setExactLocalPhase).
+  /// with self-collision: Stepper::setSelfCollision).
   void rebuildStepper();
   /// Stats of several steps with the state's figures at their end.
   StepStats finish(StepStats total);

@@ -79,9 +79,12 @@ class Stepper {
   /// them over the step; implicit_euler solves again while its answer
   /// changes their active set (SelfRepulsion::updateActiveSet).
   void setRepulsion(SelfRepulsion* repulsion) { repulsion_ = repulsion; }
-  /// Whether a newton solve may go on with the exact Hessian once it
-  /// converges (see newtonSolve); the default yes, no with self-collision.
-  void setExactLocalPhase(bool on) { exact_local_phase_ = on; }
+  /// Whether the cloth collides with itself. Without (the default), a
+  /// backward-Euler solve to the tolerance (the newton method, and bdf2's
+  /// retries as backward Euler) holds its damping axes and may go on with the
+  /// exact Hessian once it converges (see newtonSolve). With it, only the
+  /// newton method holds its axes, and no solve takes the exact phase.
+  void setSelfCollision(bool on) { self_collision_ = on; }
   /// f(x, v): the model's forces (computeForces) plus the repulsion's.
   void forces(const Model& model, const VecX& x, const VecX& v, VecX& f,
               const std::vector<Vec3>* damping_axes = nullptr) const;
@@ -198,7 +201,8 @@ class Stepper {
   std::vector<Vec3> damping_axes_;  ///< along-spring damping axes held over a Newton step
   /// newtonSolve's local phase: assemble without the compression projection.
   bool exact_hessian_ = false;
-  bool exact_local_phase_ = true;  ///< setExactLocalPhase
+  bool self_collision_ = false;  ///< setSelfCollision
+  Method method_ = Method::ImplicitEuler;  ///< this step's method (the scene's, or step()'s `as`)
   bool axes_held_ = false;        ///< damping_axes_ hold for the last step
   double decrement_stop_ = 0.0;    ///< setDecrementStop
   std::function<bool(const VecX&, const VecX&)> energy_stop_;  ///< setEnergyStop

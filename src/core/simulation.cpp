@@ -609,7 +609,7 @@ bool sameSolver(const Scene::Solver& a, const Scene::Solver& b) {
 
 void Simulation::rebuildStepper() {
   stepper_ = Stepper(scene_.solver);
-  stepper_.setExactLocalPhase(!scene_.self_collision.enabled);
+  stepper_.setSelfCollision(scene_.self_collision.enabled);
 }
 
 Status Simulation::retune(const Tuning& tuning) {

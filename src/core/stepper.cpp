@@ -83,6 +83,7 @@ StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
   setPins(model, pins);
   preconditioner_ = auto_.choose(settings_.preconditioner, model, h, !colliders.empty());
   const Method method = as.value_or(settings_.method);
+  method_ = method;
   contact_on_ = !colliders.empty();
   v_pass_.resize(0);
   StepStats stats;
@@ -361,13 +362,19 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
   // Every iterate's forces come from one evaluation: the assembly gives f at
   // the start, the line search's accepted trial the g of the next iterate.
   auto t0 = Clock::now();
-  // Along-spring damping's axes, held over a newton step at the step
-  // start's (x is still x0 here; ax may alias it): see the header. Only
-  // for the newton method: implicit_euler's refined steps (a decrement
-  // stop; accepted on energy) and bdf2's backward-Euler retries keep the
-  // turning axis and their methods' answers.
+  // Along-spring damping's axes, held over a backward-Euler solve to the
+  // tolerance at the step start's (x is still x0 here; ax may alias it): see
+  // the header. The newton method's steps, and bdf2's steps retried as
+  // backward Euler: with the turning axis, Newton missed 1e-8 in 50
+  // iterations on stiff springs a pin jump turned (hard case 07a under bdf2:
+  // 20 rejected sub-steps, 10 with the axes held, 6 with stepWithRecovery's
+  // retry of unconverged steps too; c4 258 -> 221). Not implicit_euler's
+  // refined steps (a decrement stop; accepted on energy), and not bdf2's
+  // retries with self-collision: the heap (hard case s1) then reached
+  // 10.8 % strain where 5 %.
   const bool backward_euler_to_tolerance =
-      settings_.method == Method::Newton && beta == 1.0 && decrement_stop_ == 0.0;
+      method_ == Method::Newton && beta == 1.0 && decrement_stop_ == 0.0 &&
+      (settings_.method == Method::Newton || !self_collision_);
   axes_held_ = model.damping_model == DampingModel::AlongSpring && hasSpringDamping(model) &&
                backward_euler_to_tolerance;
   if (axes_held_) springAxes(model, x, damping_axes_);
@@ -380,14 +387,14 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
   // springs' negative transverse terms); at the first sign that it is not
   // (CG meets negative curvature or stops short, no descent) or that its
   // model does not hold (a cut step, ||g|| not halved) the rest of the
-  // solve goes back to the projected one. Only for the newton method: with
-  // its damping axes held, the exact matrix is the Hessian of the potential
-  // the line search descends. bdf2 (turning axes) gained energy with it and
-  // retried steps (self hard case s2: 16 -> 118-162 rejected), and
-  // implicit_euler's refinement stops on a decrement, not a tolerance. Not
-  // with self-collision (setExactLocalPhase): the heap (hard case s1) then
-  // found answers strained 11-12 % at its impact where 5 %.
-  bool exact_allowed = exact_local_phase_ && settings_.project_compression &&
+  // solve goes back to the projected one. Only for backward Euler solved to
+  // the tolerance: with its damping axes held, the exact matrix is the
+  // Hessian of the potential the line search descends. bdf2's own steps
+  // (turning axes) gained energy with it and were retried (self hard case
+  // s2: 16 -> 118-162 rejected), and implicit_euler's refinement stops on a
+  // decrement, not a tolerance. Not with self-collision: the heap (hard case
+  // s1) then found answers strained 11-12 % at its impact where 5 %.
+  bool exact_allowed = !self_collision_ && settings_.project_compression &&
                        backward_euler_to_tolerance && max_iterations > 1 && !energy_stop_;
   exact_hessian_ = false;
   auto assembleIterate = [&] {
