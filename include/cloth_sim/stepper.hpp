@@ -79,11 +79,12 @@ class Stepper {
   /// them over the step; implicit_euler solves again while its answer
   /// changes their active set (SelfRepulsion::updateActiveSet).
   void setRepulsion(SelfRepulsion* repulsion) { repulsion_ = repulsion; }
-  /// Whether the cloth collides with itself. Without (the default), a
-  /// Newton solve to the tolerance (the newton method, bdf2, and bdf2's
-  /// retries as backward Euler) holds its damping axes and may go on with the
-  /// exact Hessian once it converges (see newtonSolve). With it, only the
-  /// newton method holds its axes, and no solve takes the exact phase.
+  /// Whether the cloth collides with itself. Without it (the default), a
+  /// Newton solve to the tolerance holds its damping axes and may go on with
+  /// the exact Hessian once it converges (see newtonSolve): the newton
+  /// method's always, bdf2's (and its retries as backward Euler) in a step
+  /// without colliders. With it, only the newton method holds its axes, and
+  /// no solve takes the exact phase.
   void setSelfCollision(bool on) { self_collision_ = on; }
   /// f(x, v): the model's forces (computeForces) plus the repulsion's.
   void forces(const Model& model, const VecX& x, const VecX& v, VecX& f,
@@ -145,9 +146,10 @@ class Stepper {
   /// keeps the second order (held at the start, the error-controlled global
   /// error was 7x the tolerance); with the exact local phase that made the
   /// demo under bdf2 2.2x cheaper (2 s: 3329 -> 1275 Newton iterations, 57
-  /// -> 29 rejected). With self-collision only the newton method holds them
-  /// (the heap under bdf2: 517 rejected where 26), and implicit_euler's
-  /// refined steps never do (docs/stability.md, docs/design.md).
+  /// -> 29 rejected). With colliders or self-collision only the newton
+  /// method holds them (bdf2: a stability-map run of c4 failed; the heap
+  /// rejected 517 sub-steps where 26), and implicit_euler's refined steps
+  /// never do (docs/stability.md, docs/design.md).
   StepStats newtonSolve(const Model& model, double h, double beta, const VecX& ax,
                         const VecX& av, int max_iterations, VecX& x, VecX& v);
   /// Newton's merit function: 1/2 |v1 - av|_M^2 + U(x1) + b h R(v1), with U

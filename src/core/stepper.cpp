@@ -368,24 +368,29 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
   // backward Euler: with the turning axis, Newton missed 1e-8 in 50
   // iterations on stiff springs a pin jump turned (hard case 07a under bdf2:
   // 20 rejected sub-steps, 10 with the axes held, 6 with stepWithRecovery's
-  // retry of unconverged steps too; c4 258 -> 221). Not implicit_euler's
-  // refined steps (a decrement stop; accepted on energy), and not bdf2's
-  // retries with self-collision: the heap (hard case s1) then reached
-  // 10.8 % strain where 5 %.
+  // retry of unconverged steps too). Not implicit_euler's refined steps (a
+  // decrement stop; accepted on energy), and bdf2's only in a scene without
+  // colliders and self-collision (bdf2_holds): with self-collision the heap
+  // (hard case s1) reached 10.8 % strain where 5 %; with colliders the
+  // stiffened cloth on a table (c4 at stretch 1e4, dt 0.1, a stability map
+  // run) failed its stiffening step on energy after 8 halvings, where it had
+  // recovered in 5.
+  const bool bdf2_holds = !self_collision_ && !contact_on_;
   const bool backward_euler_to_tolerance =
       method_ == Method::Newton && beta == 1.0 && decrement_stop_ == 0.0 &&
-      (settings_.method == Method::Newton || !self_collision_);
+      (settings_.method == Method::Newton || bdf2_holds);
   // bdf2's own steps (and its trapezoidal start) hold theirs at the step's
   // predictor ax + b h av instead, which is x1 to O(h^2): the damping's axis
   // is then off by O(h^2) and BDF2 stays second order (the demo cloth at
   // 12x12, dt 1/60..1/480 against 1/3840: errors within 5 % of the turning
   // axes', slopes 1.4, 1.6, 1.8 both). Held, its Newton solves the
   // minimisation of a potential, and the exact local phase below converges
-  // quadratically (hard case 05a: 2335 -> 640 Newton iterations, c3 8502 ->
-  // 3667 and 152 -> 86 rejected sub-steps). Not with self-collision: the heap
-  // (s1) then rejected 517 sub-steps where 26.
+  // quadratically (hard case 05a: 2335 -> 640 Newton iterations, 05b 4648 ->
+  // 2051). Only where bdf2_holds: with colliders it also cut c3's 8502 ->
+  // 3667, but the map run above failed; with self-collision the heap (s1)
+  // rejected 517 sub-steps where 26.
   const bool bdf2_to_tolerance = method_ == Method::Bdf2 && decrement_stop_ == 0.0 &&
-                                 !energy_stop_ && !self_collision_;
+                                 !energy_stop_ && bdf2_holds;
   axes_held_ = model.damping_model == DampingModel::AlongSpring && hasSpringDamping(model) &&
                (backward_euler_to_tolerance || bdf2_to_tolerance);
   if (bdf2_to_tolerance) x = ax_ + bh * av_;  // the predictor (ax_ keeps the start)
