@@ -86,6 +86,10 @@ class Stepper {
   /// without colliders. With it, only the newton method holds its axes, and
   /// no solve takes the exact phase.
   void setSelfCollision(bool on) { self_collision_ = on; }
+  /// Whether bdf2's steps, and its retries as backward Euler, hold their
+  /// damping axes and may take the exact phase in a step with (or without)
+  /// colliders: only without colliders and self-collision (see newtonSolve).
+  bool bdf2HoldsAxes(bool colliders) const { return !self_collision_ && !colliders; }
   /// f(x, v): the model's forces (computeForces) plus the repulsion's.
   void forces(const Model& model, const VecX& x, const VecX& v, VecX& f,
               const std::vector<Vec3>* damping_axes = nullptr) const;

@@ -185,8 +185,8 @@ StepStats Simulation::stepWithRecovery(double h, int depth) {
   // 05b 59 -> 29). Not with contact: an edge dragged over a table (c3) then
   // peaked at 62 % strain where 20 %; not with self-collision: the heap (s1)
   // took 46 rejected sub-steps where 26, and 10 % strain where 5 %.
-  const bool unconverged_bdf2 = bdf2_step && !first.newton_converged && first.finite &&
-                                colliders_.empty() && !scene_.self_collision.enabled;
+  const bool unconverged_bdf2 = !first.newton_converged && first.finite &&
+                                stepper_.bdf2HoldsAxes(!colliders_.empty());
   if (!first.ok && bdf2_step && (energy_rejected_ || unconverged_bdf2)) {
     // Neither BDF2 nor its trapezoidal start is dissipative step by step: a
     // step that would gain energy is retried as backward Euler (order 1) at

@@ -375,7 +375,7 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
   // stiffened cloth on a table (c4 at stretch 1e4, dt 0.1, a stability map
   // run) failed its stiffening step on energy after 8 halvings, where it had
   // recovered in 5.
-  const bool bdf2_holds = !self_collision_ && !contact_on_;
+  const bool bdf2_holds = bdf2HoldsAxes(contact_on_);
   const bool backward_euler_to_tolerance =
       method_ == Method::Newton && beta == 1.0 && decrement_stop_ == 0.0 &&
       (settings_.method == Method::Newton || bdf2_holds);
