@@ -19,6 +19,10 @@ double updateSolution(int n, double alpha, const double* p, const double* q, dou
 double blockJacobi(int m, const double* const inv[6], const double* r, double* z);
 /// p = z + beta p.
 void updateDirection(int n, double beta, const double* z, double* p);
+/// Whether every entry is finite (the steppers' check of every step, too).
+bool allFinite(int n, const double* x);
+/// y = a x + b y (b = 0: y = a x, whatever y held).
+void scaleAdd(int n, double a, const double* x, double b, double* y);
 
 }  // namespace cg_kernels
 }  // namespace cloth_sim

@@ -20,8 +20,9 @@ namespace cloth_sim {
 
 struct CgResult {
   int iterations = 0;
-  double relative_residual = 0.0;  ///< ||b - A x|| / ||b||
+  double relative_residual = 0.0;  ///< ||b - A x|| / ||b|| (a bound on it after float products)
   bool converged = false;
+  int float_products = 0;  ///< relaxed products taken in float (linear_solver.cpp)
 };
 
 /// The system matrix copied into a sparse matrix whose pattern is built once

@@ -290,6 +290,7 @@ class Simulation {
     std::vector<ColliderState> colliders;
     double max_penetration = 0.0;
     double min_self_distance = 0.0;
+    bool saved = false;  ///< of this step (step() clears it)
   } checkpoint_;
 };
 

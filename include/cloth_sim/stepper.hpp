@@ -9,6 +9,7 @@
 #include "cloth_sim/contact.hpp"
 #include "cloth_sim/linear_solver.hpp"
 #include "cloth_sim/model.hpp"
+#include "cloth_sim/recycled_start.hpp"
 #include "cloth_sim/scene.hpp"
 #include "cloth_sim/self_repulsion.hpp"
 #include "cloth_sim/step_stats.hpp"
@@ -192,10 +193,9 @@ class Stepper {
   SystemMatrix A_;
   CgWorkspace cg_;
   VecX f_, rhs_, dv_, dfdx_v_, g_, x_trial_, v_trial_, g_trial_, delta_, delta_first_, ax_, av_, pinned_dv_;
-  /// implicit_euler's warm start: the solution before dv_'s, and the step
-  /// sizes both were solved at (0: none).
-  VecX dv_before_, dv_swap_;
-  double h_of_dv_ = 0.0, h_of_dv_before_ = 0.0;
+  /// implicit_euler's warm start: its first passes' answers at h_of_recycled_.
+  RecycledStart recycled_;
+  double h_of_recycled_ = 0.0;
   bool first_pass_ = true;  ///< the step's first contact pass (or no contact)
   VecX x_best_, v_best_, g_best_;  ///< the line search's best trial
   VecX v_start_;                   ///< Newton's first iterate

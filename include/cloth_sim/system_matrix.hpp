@@ -18,6 +18,7 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <memory>
 #include <utility>
 #include <vector>
@@ -135,6 +136,24 @@ class SystemMatrix {
   bool singlePrecisionFits(double tolerance) const;
   /// The largest ratio of a node's summed coupling norms to its node block.
   double couplingToMassRatio() const;
+  /// For CG's relaxed products (linear_solver.cpp): a bound on a float
+  /// product's error relative to |A x|, the rounding singlePrecisionFits
+  /// checks times the node blocks' spread (largest over smallest). A >= the
+  /// node blocks holds where every coupling is PSD and there are no extra
+  /// node blocks or pair terms; elsewhere INFINITY (no bound, no float).
+  double relaxedSingleRounding() const;
+  /// The assembler's bound on every slot's |iso| + |axis| + |c|, given with
+  /// its word that every coupling is PSD (assembleSystem with the
+  /// compression projection: b k + a c of the stiffest group). Any later
+  /// change of the couplings drops it; without it there are no relaxed
+  /// products.
+  void setPsdCouplingBound(double bound) const {
+    psd_coupling_bound_ = bound;
+    relaxed_valid_ = false;
+  }
+  /// y = A x with the springs' terms in float (node blocks, pair terms and
+  /// vectors in double), whatever the tolerance: CG bounds its error itself.
+  void multiplySplitFloat(const double* x, double* y) const;
   /// Full diagonal block of node i including its springs' couplings (summed
   /// on first use after the couplings changed: only block Jacobi and Cholesky
   /// need them).
@@ -142,7 +161,10 @@ class SystemMatrix {
   const std::vector<SymBlock>& fullDiagonal() const;
 
  private:
-  void changed() { full_diag_valid_ = false, single_valid_ = false, ratio_valid_ = false; }
+  void changed() {
+    full_diag_valid_ = false, single_valid_ = false, ratio_valid_ = false, relaxed_valid_ = false;
+    psd_coupling_bound_ = INFINITY;
+  }
   void multiplySplitDouble(const double* x, double* y) const;
   void multiplySplitSingle(const double* x, double* y) const;  // system_matrix_single.cpp
   void makeSingleCopies() const;
@@ -176,6 +198,10 @@ class SystemMatrix {
   mutable std::vector<double> coupled_;  ///< per node, couplingToMassRatio's sums
   mutable double ratio_ = 0.0;
   mutable bool ratio_valid_ = false;
+  mutable double psd_coupling_bound_ = INFINITY;  ///< setPsdCouplingBound's
+  std::pair<double, double> node_scale_range_{0.0, 0.0};  ///< smallest, largest (reset)
+  mutable double relaxed_rounding_ = 0.0;
+  mutable bool relaxed_valid_ = false;
 };
 
 inline SymBlock SystemMatrix::couplingBlock(int spring) const {

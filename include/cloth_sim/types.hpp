@@ -11,6 +11,10 @@ using Vec3 = Eigen::Vector3d;
 using Mat3 = Eigen::Matrix3d;
 using VecX = Eigen::VectorXd;
 
+/// Whether every entry of x is finite: Eigen's allFinite, vectorised (the
+/// steppers check every step's state).
+bool allFinite(const VecX& x);
+
 /// The three optional spring groups of a grid cloth.
 enum class SpringType { Stretch = 0, Shear = 1, Bend = 2 };
 constexpr int kNumSpringTypes = 3;

@@ -83,5 +83,26 @@ void updateDirection(int n, double beta, const double* __restrict z, double* __r
   for (int i = 0; i < n; ++i) p[i] = z[i] + beta * p[i];
 }
 
+CLOTH_SIM_VECTORISED
+bool allFinite(int n, const double* __restrict x) {
+  // x - x is 0 for a finite x and NaN otherwise; eight partial sums, as dot.
+  double s[8] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+  int i = 0;
+  for (; i + 8 <= n; i += 8) {
+    for (int k = 0; k < 8; ++k) s[k] += x[i + k] - x[i + k];
+  }
+  for (; i < n; ++i) s[0] += x[i] - x[i];
+  return ((s[0] + s[1]) + (s[2] + s[3])) + ((s[4] + s[5]) + (s[6] + s[7])) == 0.0;
+}
+
+CLOTH_SIM_VECTORISED
+void scaleAdd(int n, double a, const double* __restrict x, double b, double* __restrict y) {
+  if (b == 0.0) {
+    for (int i = 0; i < n; ++i) y[i] = a * x[i];
+  } else {
+    for (int i = 0; i < n; ++i) y[i] = a * x[i] + b * y[i];
+  }
+}
+
 }  // namespace cg_kernels
 }  // namespace cloth_sim

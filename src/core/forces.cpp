@@ -152,6 +152,17 @@ void assembleSystem(const Model& model, const VecX& x, const VecX& v, double a, 
   if (dfdx_w) dfdx_w->resize(x.size());
   springSweeps(model, x, v, a, b, project_compression, &A, f, dfdx_w ? w : nullptr, dfdx_w,
                damping_axes);
+  if (project_compression && a >= 0.0 && b >= 0.0) {
+    // Projected, a slot's block is b k ((1 - t) u u^T + t I) with t in [0, 1]
+    // plus a c on I, an axis or a held axis: PSD, |iso| + |axis| + |c| =
+    // b k + a c (forceLoop, spring_sweeps.cpp).
+    double bound = 0.0;
+    for (const SpringGroup& g : model.groups) {
+      if (!(g.stiffness >= 0.0 && g.damping >= 0.0)) return;  // no word given
+      bound = std::max(bound, b * g.stiffness + a * g.damping);
+    }
+    A.setPsdCouplingBound(bound);
+  }
 }
 
 EnergyParts measureEnergy(const Model& model, const VecX& x, const VecX& v) {
@@ -175,9 +186,21 @@ EnergyParts measureEnergy(const Model& model, const VecX& x, const VecX& v) {
 }
 
 double kineticEnergy(const Model& model, const VecX& v) {
-  double e = 0.0;
-  for (int i = 0; i < model.numNodes(); ++i) e += 0.5 * model.mass[i] * v.segment<3>(3 * i).squaredNorm();
-  return e;
+  // Four partial sums: one is a chain of dependent adds (the energy check
+  // measures every step).
+  const int n = model.numNodes();
+  const double* m = model.mass.data();
+  const double* w = v.data();
+  double e[4] = {0.0, 0.0, 0.0, 0.0};
+  int i = 0;
+  for (; i + 4 <= n; i += 4) {
+    for (int k = 0; k < 4; ++k) {
+      const double* u = w + 3 * (i + k);
+      e[k] += m[i + k] * (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
+    }
+  }
+  for (; i < n; ++i) e[0] += m[i] * v.segment<3>(3 * i).squaredNorm();
+  return 0.5 * ((e[0] + e[1]) + (e[2] + e[3]));
 }
 
 double elasticEnergy(const Model& model, const VecX& x) {
@@ -190,9 +213,20 @@ double elasticEnergy(const Model& model, const VecX& x) {
 
 double gravityEnergy(const Model& model, const VecX& x) {
   if (!model.has_gravity) return 0.0;
-  double e = 0.0;
-  for (int i = 0; i < model.numNodes(); ++i) e -= model.mass[i] * model.gravity.dot(x.segment<3>(3 * i));
-  return e;
+  const int n = model.numNodes();
+  const double* m = model.mass.data();
+  const double* y = x.data();
+  const double g0 = model.gravity[0], g1 = model.gravity[1], g2 = model.gravity[2];
+  double e[4] = {0.0, 0.0, 0.0, 0.0};  // partial sums, as kineticEnergy
+  int i = 0;
+  for (; i + 4 <= n; i += 4) {
+    for (int k = 0; k < 4; ++k) {
+      const double* u = y + 3 * (i + k);
+      e[k] += m[i + k] * (g0 * u[0] + g1 * u[1] + g2 * u[2]);
+    }
+  }
+  for (; i < n; ++i) e[0] += m[i] * model.gravity.dot(x.segment<3>(3 * i));
+  return -((e[0] + e[1]) + (e[2] + e[3]));
 }
 
 double maxStrain(const Model& model, const VecX& x) {
@@ -222,14 +256,23 @@ struct RoundOffTerms {
 };
 
 RoundOffTerms roundOffTerms(const Model& model, const VecX& av) {
-  RoundOffTerms t;
-  for (int i = 0; i < model.numNodes(); ++i) {
+  // Two nodes at a time: two chains of dependent adds instead of one.
+  RoundOffTerms t, u;
+  const int n = model.numNodes();
+  auto add = [&](RoundOffTerms& s, int i) {
     const double m = model.mass[i], v2 = av.segment<3>(3 * i).squaredNorm();
-    t.momentum_sq += m * m * v2;
-    t.mass_sq += m * m;
-    t.kinetic2 += m * v2;
-    t.m_min = std::min(t.m_min, m);
-  }
+    s.momentum_sq += m * m * v2;
+    s.mass_sq += m * m;
+    s.kinetic2 += m * v2;
+    s.m_min = std::min(s.m_min, m);
+  };
+  int i = 0;
+  for (; i + 2 <= n; i += 2) add(t, i), add(u, i + 1);
+  if (i < n) add(t, i);
+  t.momentum_sq += u.momentum_sq;
+  t.mass_sq += u.mass_sq;
+  t.kinetic2 += u.kinetic2;
+  t.m_min = std::min(t.m_min, u.m_min);
   return t;
 }
 

@@ -372,25 +372,43 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
       reused_factor      ? std::min(max_iterations, CholeskyFactor::kStaleFactorIterations)
       : reused_multigrid ? std::min(max_iterations, ws.multigrid->staleIterations())
                          : max_iterations;
+  // Relaxed float products where the whole solve's tolerance does not allow
+  // them (A.singlePrecisionFits): a product's rounding reaches the answer
+  // only through the residual still to be removed, so it may grow as that
+  // falls (inexact Krylov methods: van den Eshof & Sleijpen 2004). A float
+  // product of p, whose error is below eps |A p|, shifts the recurrence's r
+  // from b - A x by at most eps |alpha A p| = eps |r_k - r_k+1|: gap sums
+  // those bounds, the solve stops on r + gap <= target, and a product is
+  // float only while that keeps gap within half the target.
+  const double eps = A.singlePrecisionFits(tolerance) ? INFINITY : A.relaxedSingleRounding();
+  double gap = 0.0;
   int k = 0;
   double* ps = ws.p.data();
   double* qs = ws.q.data();
-  while (r_norm > target && k < budget) {
-    A.multiplySplit(ps, qs);
+  while (r_norm + gap > target && k < budget) {
+    const bool relaxed = gap + 2.0 * eps * r_norm <= 0.5 * target;
+    if (relaxed) {
+      A.multiplySplitFloat(ps, qs);
+      ++result.float_products;
+    } else {
+      A.multiplySplit(ps, qs);
+    }
     filter.applySplit(qs);
     const double pq = cg_kernels::dot(dim, ps, qs);
     if (!(pq > 0.0)) break;  // not positive definite (or NaN): stop, report
     const double alpha = rz / pq;
     const double rr = cg_kernels::updateSolution(dim, alpha, ps, qs, xs, rs);
+    const double r_before = r_norm;
     r_norm = std::sqrt(rr);
+    if (relaxed) gap += eps * (r_before + r_norm);
     ++k;
-    if (r_norm <= target) break;
+    if (r_norm + gap <= target) break;
     const double rz_new = plain ? rr : applyPreconditioner(preconditioner, ws, filter, ws.r, z);
     cg_kernels::updateDirection(dim, rz_new / rz, z.data(), ps);
     rz = rz_new;
   }
   sweeps::joinComponents(xs, n, x.data());
-  if ((reused_factor || reused_multigrid) && r_norm > target && k < max_iterations) {
+  if ((reused_factor || reused_multigrid) && r_norm + gap > target && k < max_iterations) {
     // Too stale for this matrix: rebuild from it and go on from x.
     if (reused_factor) {
       ws.cholesky->invalidate();
@@ -402,9 +420,11 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
     CgResult more = conjugateGradient(A, springs, filter, b, x, preconditioner, tolerance,
                                       max_iterations - k, ws);
     more.iterations += k;
+    more.float_products += result.float_products;
     return more;
   }
   if (preconditioner == Preconditioner::Multigrid) ws.multigrid->recordSolve(k);
+  r_norm += gap;  // what the true residual is known to be below
   if (reused_factor && r_norm <= target) ws.stale_factors = 0;  // reuse pays again
   // The rerouted matrix is close to A on a cloth, not on a collapsed or
   // crumpled one (bend springs across folds): a fresh factor of it that does

@@ -120,17 +120,20 @@ StepStats Simulation::step(double h) {
     return bad;
   }
   applyDueEvents();
-  // Checkpoint, so a step that fails even after recovery changes nothing
-  // (and error control can take a step back).
-  if (scene_.solver.recovery || adaptive()) saveCheckpoint();
+  // Checkpoint, so a step that fails even after recovery changes nothing:
+  // taken before the first halving (stepWithRecovery), as a step that is not
+  // split changes nothing when it fails, and here where error control may
+  // take the step back.
+  checkpoint_.saved = false;
+  if (adaptive()) saveCheckpoint();
   StepStats stats = stepWithRecovery(h, 0);
-  if (!stats.ok && scene_.solver.recovery) restoreCheckpoint();
+  if (!stats.ok && scene_.solver.recovery && checkpoint_.saved) restoreCheckpoint();
   if (stats.ok) ++step_count_;
   stats.h_max = h;
   stats.h_min = std::ldexp(h, -stats.halvings);
   stats.energy = measures_.total();
   stats.max_strain = measures_.max_strain;
-  stats.finite = x_.allFinite() && v_.allFinite();
+  stats.finite = allFinite(x_) && allFinite(v_);
   last_stats_ = stats;
   return stats;
 }
@@ -138,8 +141,8 @@ StepStats Simulation::step(double h) {
 double Simulation::energyScale() const {
   double weight = 0.0;
   if (model_.has_gravity) {
-    for (double m : model_.mass) weight += m;
-    weight *= model_.gravity.norm() * std::max(size_, 1e-3);
+    weight = Eigen::Map<const VecX>(model_.mass.data(), model_.numNodes()).sum() *
+             model_.gravity.norm() * std::max(size_, 1e-3);
   }
   return measures_.kinetic + measures_.elastic + weight + 1e-12;
 }

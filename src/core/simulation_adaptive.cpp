@@ -22,6 +22,7 @@ void Simulation::saveCheckpoint() {
   checkpoint_.colliders = collider_states_;
   checkpoint_.max_penetration = max_penetration_;
   checkpoint_.min_self_distance = min_self_distance_;
+  checkpoint_.saved = true;
 }
 
 void Simulation::restoreCheckpoint() {
@@ -148,7 +149,7 @@ StepStats Simulation::advanceTo(double t_end) {
 StepStats Simulation::finish(StepStats total) {
   total.energy = measures_.total();
   total.max_strain = measures_.max_strain;
-  total.finite = x_.allFinite() && v_.allFinite();
+  total.finite = allFinite(x_) && allFinite(v_);
   last_stats_ = total;
   return total;
 }

@@ -279,6 +279,9 @@ StepStats Simulation::stepWithRecovery(double h, int depth) {
     }
     return first;
   }
+  // Every attempt so far failed and changed nothing: the state is still the
+  // step's start, which the halves' failure must return to.
+  if (!checkpoint_.saved) saveCheckpoint();
   StepStats total;
   total.substeps = 0;
   total.rejected = 1;

@@ -238,16 +238,11 @@ void energySweep(int slots, int offset, const double* const x[3], const double* 
   strain.resize(std::max(slots, 0));
   energyTerms(slots, offset, x[0], x[1], x[2], valid, rest_length, inv_rest_length, sq.data(),
               strain.data());
-  // Four partial sums: a single one is an add-latency chain.
-  double s[4] = {0.0, 0.0, 0.0, 0.0}, m = *max_strain;
-  int p = 0;
-  for (; p + 4 <= slots; p += 4) {
-    for (int r = 0; r < 4; ++r) s[r] += sq[p + r];
+  // Eigen's reductions: vectorised, partial sums and maxima.
+  if (slots > 0) {
+    *sum_sq += Eigen::Map<const Eigen::ArrayXd>(sq.data(), slots).sum();
+    *max_strain = std::max(*max_strain, Eigen::Map<const Eigen::ArrayXd>(strain.data(), slots).maxCoeff());
   }
-  for (; p < slots; ++p) s[0] += sq[p];
-  for (int q = 0; q < slots; ++q) m = std::max(m, strain[q]);
-  *sum_sq += (s[0] + s[1]) + (s[2] + s[3]);
-  *max_strain = m;
 }
 
 }  // namespace sweeps

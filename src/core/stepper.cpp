@@ -122,7 +122,7 @@ StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
         stats.failure = part.failure;
       }
       stats.contact_passes = pass;
-      if (!stats.ok || !x.allFinite() || !v.allFinite()) break;
+      if (!stats.ok || !allFinite(x) || !allFinite(v)) break;
       const ContactCheck check =
           contact_.update(colliders, filter_, model.mass, x0_, x, v, reaction_, bh_, model.gravity,
                       settings_.tolerance);
@@ -147,7 +147,7 @@ StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
       stats.contact_work = contact_.work(x0_, x, reaction_, bh_);
     }
   }
-  stats.finite = x.allFinite() && v.allFinite();
+  stats.finite = allFinite(x) && allFinite(v);
   if (!stats.finite) {
     stats.ok = false;
     stats.failure = "non-finite position or velocity";
@@ -263,22 +263,17 @@ StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v)
   stats.assembly_s = secondsSince(t0);
 
   t0 = Clock::now();
-  if (dv_.size() != 3 * n) {
-    dv_.setZero(3 * n);
-    h_of_dv_ = h_of_dv_before_ = 0.0;
-  }
+  if (dv_.size() != 3 * n) dv_.setZero(3 * n);
   if (first_pass_) {
-    // Warm start from the last step's dv, or where the last two steps of
-    // this size were heading: dv changes smoothly with a smooth motion, and
-    // the extrapolation starts CG closer (seed, CG to 1e-8: 5.7 -> 4.8
-    // iterations a step). Later contact passes start from the last pass.
-    dv_swap_ = dv_;
-    if (h_of_dv_ == h && h_of_dv_before_ == h) dv_ = 2.0 * dv_ - dv_before_;
-    dv_before_.swap(dv_swap_);
-    h_of_dv_before_ = h_of_dv_;
+    // Warm start from the last answers at this step size (recycled_start.hpp),
+    // else from the last step's dv. Later contact passes start from the
+    // last pass.
+    if (h != h_of_recycled_) recycled_.clear();
+    h_of_recycled_ = h;
+    recycled_.guess(rhs_, &dv_);
   }
   const CgResult cg = solveLinear(model, rhs_, dv_);
-  h_of_dv_ = h;
+  if (first_pass_) recycled_.record(dv_, rhs_);
   stats.solve_s = secondsSince(t0);
   stats.cg_iterations = cg.iterations;
   stats.residual = cg.relative_residual;

@@ -87,7 +87,13 @@ void SystemMatrix::useDampingAxes() {
 }
 
 void SystemMatrix::reset(const std::vector<double>& mass, double extra_diagonal) {
-  for (size_t i = 0; i < node_scale_.size(); ++i) node_scale_[i] = mass[i] + extra_diagonal;
+  double lightest = INFINITY, heaviest = 0.0;
+  for (size_t i = 0; i < node_scale_.size(); ++i) {
+    node_scale_[i] = mass[i] + extra_diagonal;
+    lightest = std::min(lightest, node_scale_[i]);
+    heaviest = std::max(heaviest, node_scale_[i]);
+  }
+  node_scale_range_ = {lightest, heaviest};
   node_blocks_.clear();
   pair_terms_.clear();
   has_damping_axes_ = false;

@@ -113,6 +113,29 @@ double SystemMatrix::couplingToMassRatio() const {
   return ratio_;
 }
 
+double SystemMatrix::relaxedSingleRounding() const {
+  if (relaxed_valid_) return relaxed_rounding_;
+  relaxed_valid_ = true;
+  relaxed_rounding_ = INFINITY;
+  // Without extra node blocks or pair terms, A = node blocks + PSD couplings
+  // >= the node blocks, and a node's couplings are at most twice each
+  // direction's bound (the ends of its two slots).
+  if (!layout_ || !node_blocks_.empty() || !pair_terms_.empty() ||
+      !std::isfinite(psd_coupling_bound_)) {
+    return relaxed_rounding_;
+  }
+  const auto [lightest, heaviest] = node_scale_range_;
+  if (!(lightest > 0.0) || !std::isfinite(heaviest)) return relaxed_rounding_;
+  const double coupled = 2.0 * static_cast<double>(coefficients_.size()) * psd_coupling_bound_;
+  relaxed_rounding_ = kSingleRounding * (coupled / lightest) * (heaviest / lightest);
+  return relaxed_rounding_;
+}
+
+void SystemMatrix::multiplySplitFloat(const double* xs, double* ys) const {
+  if (!single_valid_) makeSingleCopies();
+  multiplySplitSingle(xs, ys);
+}
+
 bool SystemMatrix::singlePrecisionFits(double tolerance) const {
   // Below kSingleRounding no cloth fits (its ratio would be under 1): the
   // bound's pass is skipped.

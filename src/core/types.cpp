@@ -1,7 +1,12 @@
-// Names of the core enums as they appear in scene files, the CLI and services.
+// Names of the core enums as they appear in scene files, the CLI and
+// services, and the vectorised finiteness check.
 #include "cloth_sim/types.hpp"
 
+#include "cloth_sim/cg_kernels.hpp"
+
 namespace cloth_sim {
+
+bool allFinite(const VecX& x) { return cg_kernels::allFinite(static_cast<int>(x.size()), x.data()); }
 
 const char* toString(SpringType type) {
   switch (type) {
