@@ -196,16 +196,16 @@ class Stepper {
   /// implicit_euler's warm start: its first passes' answers at h_of_recycled_.
   RecycledStart recycled_;
   double h_of_recycled_ = 0.0;
+  /// Newton's first corrections (first passes) with block Jacobi or no
+  /// preconditioner, at bh_of_recycled_: the next one's warm start.
+  RecycledStart newton_recycled_;
+  double bh_of_recycled_ = 0.0;
   bool first_pass_ = true;  ///< the step's first contact pass (or no contact)
   VecX x_best_, v_best_, g_best_;  ///< the line search's best trial
   VecX v_start_;                   ///< Newton's first iterate
   /// The last contact pass's answer: the next pass's Newton starts there
   /// (empty on a step's first pass).
   VecX v_pass_;
-  /// Newton's first corrections of the last two steps (first passes) and
-  /// the b h each was solved at (0: none): the next one's warm start.
-  VecX delta_first_before_;
-  double bh_of_first_ = 0.0, bh_of_first_before_ = 0.0;
   double pass_g0_ = 0.0;  ///< ||g|| at the first pass's start: later passes' scale
   std::vector<Vec3> damping_axes_;  ///< along-spring damping axes held over a Newton step
   /// newtonSolve's local phase: assemble without the compression projection.

@@ -449,20 +449,20 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
     rhs_ = -g_;
     // The first correction starts from the last step's first correction (it
     // changes little from step to step; implicit_euler's dv_ does the same):
-    // ~35% fewer CG iterations on the hanging cloth. With block Jacobi, from
-    // where the last two (at this b h) were heading, as implicit_euler does:
-    // the floor scene 27.7 -> 21.8 CG iterations a one-pass step. Not with
-    // multigrid, whose V-cycle takes that smooth error out anyway (hang32
-    // 3.2 -> 3.6 iterations a step with it). Later ones from zero.
+    // ~35% fewer CG iterations on the hanging cloth. With block Jacobi or
+    // none, from the last first corrections at this b h recycled, as
+    // implicit_euler does (recycled_start.hpp; the floor scene 27.7 -> 21.8
+    // CG iterations a one-pass step extrapolating the last two, 24.9 ->
+    // 22.2 recycling six). Not with multigrid, whose V-cycle takes that
+    // smooth error out anyway (hang32 3.2 -> 3.6 iterations a step with the
+    // extrapolation). Later ones from zero.
+    const bool recycle = it == 0 && !again &&
+                         (preconditioner_ == Preconditioner::BlockJacobi ||
+                          preconditioner_ == Preconditioner::None);
+    if (recycle && bh != bh_of_recycled_) newton_recycled_.clear();
+    if (recycle) bh_of_recycled_ = bh;
     if (it == 0 && !again && delta_first_.size() == v1.size()) {
-      const bool extrapolate = (preconditioner_ == Preconditioner::BlockJacobi ||
-                                preconditioner_ == Preconditioner::None) &&
-                               bh_of_first_ == bh && bh_of_first_before_ == bh;
-      if (extrapolate) {
-        delta_ = 2.0 * delta_first_ - delta_first_before_;
-      } else {
-        delta_ = delta_first_;
-      }
+      if (!recycle || !newton_recycled_.guess(rhs_, &delta_)) delta_ = delta_first_;
     } else {
       delta_.setZero(v1.size());
     }
@@ -507,12 +507,8 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
       delta_.setZero(v1.size());
       cg = solveLinear(model, rhs_, delta_, cg_tolerance);
     }
-    if (it == 0 && !again) {
-      delta_first_before_.swap(delta_first_);
-      delta_first_ = delta_;
-      bh_of_first_before_ = bh_of_first_;
-      bh_of_first_ = bh;
-    }
+    if (recycle) newton_recycled_.record(delta_, rhs_);
+    if (it == 0 && !again) delta_first_ = delta_;
     stats.solve_s += secondsSince(t0);
     stats.cg_iterations += cg.iterations;
     // A loose solve of inexact Newton is judged by ||g||, not by its residual.
