@@ -196,6 +196,7 @@ class Stepper {
   /// implicit_euler's warm start: its first passes' answers at h_of_recycled_.
   RecycledStart recycled_;
   double h_of_recycled_ = 0.0;
+  int recycled_iterations_ = 2;  ///< CG iterations of the last first pass
   /// Newton's first corrections (first passes) with block Jacobi or no
   /// preconditioner, at bh_of_recycled_: the next one's warm start.
   RecycledStart newton_recycled_;

@@ -142,11 +142,11 @@ class SystemMatrix {
   /// node blocks holds where every coupling is PSD and there are no extra
   /// node blocks or pair terms; elsewhere INFINITY (no bound, no float).
   double relaxedSingleRounding() const;
-  /// The assembler's bound on every slot's |iso| + |axis| + |c|, given with
-  /// its word that every coupling is PSD (assembleSystem with the
-  /// compression projection: b k + a c of the stiffest group). Any later
-  /// change of the couplings drops it; without it there are no relaxed
-  /// products.
+  /// The assembler's bound on a node's summed couplings (|iso| + |axis| +
+  /// |c| over its slots), given with its word that every coupling is PSD
+  /// (assembleSystem with the compression projection: twice b k + a c of
+  /// each direction's group). Any later change of the couplings drops it;
+  /// without it there are no relaxed products.
   void setPsdCouplingBound(double bound) const {
     psd_coupling_bound_ = bound;
     relaxed_valid_ = false;

@@ -72,11 +72,16 @@ void springSweeps(const Model& model, const VecX& x, const VecX& v, double a, do
   sweeps::splitComponents(x, buf.x.data());
   sweeps::splitComponents(v, buf.v.data());
   sweeps::splitComponents(f, buf.f.data());
+  // K w of the velocities themselves (implicit_euler's h K v0): no second split.
+  const bool w_is_v = w == &v;
   if (w) {
-    buf.w.resize(size);
     buf.kw.assign(size, 0.0);
-    sweeps::splitComponents(*w, buf.w.data());
+    if (!w_is_v) {
+      buf.w.resize(size);
+      sweeps::splitComponents(*w, buf.w.data());
+    }
   }
+  const double* w_split = w_is_v ? buf.v.data() : buf.w.data();
   const bool along = model.damping_model == DampingModel::AlongSpring;
   const bool held = along && damping_axes;
   if (held) {  // per spring to per slot: direction d's axes at held[3 d n + c n + node]
@@ -96,7 +101,7 @@ void springSweeps(const Model& model, const VecX& x, const VecX& v, double a, do
     for (int c = 0; c < 3; ++c) {
       in.x[c] = buf.x.data() + c * n;
       in.v[c] = buf.v.data() + c * n;
-      if (w) in.w[c] = buf.w.data() + c * n;
+      if (w) in.w[c] = w_split + c * n;
       if (held) in.held[c] = buf.held.data() + (3 * d + c) * n;
       in.rest_dir[c] = dir.rest_dir[c].data();
     }
@@ -155,11 +160,13 @@ void assembleSystem(const Model& model, const VecX& x, const VecX& v, double a, 
   if (project_compression && a >= 0.0 && b >= 0.0) {
     // Projected, a slot's block is b k ((1 - t) u u^T + t I) with t in [0, 1]
     // plus a c on I, an axis or a held axis: PSD, |iso| + |axis| + |c| =
-    // b k + a c (forceLoop, spring_sweeps.cpp).
+    // b k + a c (forceLoop, spring_sweeps.cpp); a node ends at most two
+    // slots of each direction.
     double bound = 0.0;
-    for (const SpringGroup& g : model.groups) {
+    for (const SpringDirection& dir : model.layout->directions) {
+      const SpringGroup& g = model.groups[static_cast<int>(dir.type)];
       if (!(g.stiffness >= 0.0 && g.damping >= 0.0)) return;  // no word given
-      bound = std::max(bound, b * g.stiffness + a * g.damping);
+      bound += 2.0 * (b * g.stiffness + a * g.damping);
     }
     A.setPsdCouplingBound(bound);
   }

@@ -266,14 +266,19 @@ StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v)
   if (dv_.size() != 3 * n) dv_.setZero(3 * n);
   if (first_pass_) {
     // Warm start from the last answers at this step size (recycled_start.hpp),
-    // else from the last step's dv. Later contact passes start from the
-    // last pass.
+    // else from the last step's dv. Not where the last solve took less than
+    // two CG iterations: its guess (its dot products) then costs more than
+    // it saves (the seed at its own CG 1e-2: 0.5 iterations a step either
+    // way). Later contact passes start from the last pass.
     if (h != h_of_recycled_) recycled_.clear();
     h_of_recycled_ = h;
-    recycled_.guess(rhs_, &dv_);
+    if (recycled_iterations_ >= 2) recycled_.guess(rhs_, &dv_);
   }
   const CgResult cg = solveLinear(model, rhs_, dv_);
-  if (first_pass_) recycled_.record(dv_, rhs_);
+  if (first_pass_) {
+    recycled_.record(dv_, rhs_);
+    recycled_iterations_ = cg.iterations;
+  }
   stats.solve_s = secondsSince(t0);
   stats.cg_iterations = cg.iterations;
   stats.residual = cg.relative_residual;

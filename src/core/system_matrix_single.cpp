@@ -86,6 +86,14 @@ void finishSingle(int n, const float* __restrict ta, int oa, const float* __rest
 
 double SystemMatrix::couplingToMassRatio() const {
   if (ratio_valid_) return ratio_;
+  if (std::isfinite(psd_coupling_bound_) && node_scale_range_.first > 0.0) {
+    // The assembler's bound over the lightest node: the per-node sums below
+    // on a cloth of equal masses (its interior nodes' sums are the bound),
+    // and no pass over the slots (5 % of the seed's step).
+    ratio_ = psd_coupling_bound_ / node_scale_range_.first;
+    ratio_valid_ = true;
+    return ratio_;
+  }
   const int n = numNodes();
   // Per node: its node block and the norms (bounds) of the couplings at
   // both ends of each slot.
@@ -118,16 +126,14 @@ double SystemMatrix::relaxedSingleRounding() const {
   relaxed_valid_ = true;
   relaxed_rounding_ = INFINITY;
   // Without extra node blocks or pair terms, A = node blocks + PSD couplings
-  // >= the node blocks, and a node's couplings are at most twice each
-  // direction's bound (the ends of its two slots).
+  // >= the node blocks.
   if (!layout_ || !node_blocks_.empty() || !pair_terms_.empty() ||
       !std::isfinite(psd_coupling_bound_)) {
     return relaxed_rounding_;
   }
   const auto [lightest, heaviest] = node_scale_range_;
   if (!(lightest > 0.0) || !std::isfinite(heaviest)) return relaxed_rounding_;
-  const double coupled = 2.0 * static_cast<double>(coefficients_.size()) * psd_coupling_bound_;
-  relaxed_rounding_ = kSingleRounding * (coupled / lightest) * (heaviest / lightest);
+  relaxed_rounding_ = kSingleRounding * (psd_coupling_bound_ / lightest) * (heaviest / lightest);
   return relaxed_rounding_;
 }
 
