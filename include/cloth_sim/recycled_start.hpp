@@ -26,6 +26,11 @@ class RecycledStart {
 
   /// Forgets every answer (a new step size, say).
   void clear();
+  /// Keys the kept answers to a step size: another one than theirs forgets them.
+  void useFor(double step) {
+    if (step != step_) clear();
+    step_ = step;
+  }
   int size() const { return count_; }
 
   /// x = V c for right-hand side b. False (x untouched) with no answers kept,
@@ -40,6 +45,7 @@ class RecycledStart {
   int capacity_;
   int count_ = 0;
   int next_ = 0;                  ///< the slot the next record overwrites
+  double step_ = 0.0;             ///< useFor's
   std::vector<VecX> answers_;     ///< V, by slot
   std::vector<VecX> rights_;      ///< B, by slot
   Eigen::MatrixXd gram_;          ///< B^T B by slot

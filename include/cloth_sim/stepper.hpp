@@ -193,14 +193,12 @@ class Stepper {
   SystemMatrix A_;
   CgWorkspace cg_;
   VecX f_, rhs_, dv_, dfdx_v_, g_, x_trial_, v_trial_, g_trial_, delta_, delta_first_, ax_, av_, pinned_dv_;
-  /// implicit_euler's warm start: its first passes' answers at h_of_recycled_.
+  /// implicit_euler's warm start: its first passes' answers (without contact).
   RecycledStart recycled_;
-  double h_of_recycled_ = 0.0;
   int recycled_iterations_ = 2;  ///< CG iterations of the last first pass
   /// Newton's first corrections (first passes) with block Jacobi or no
-  /// preconditioner, at bh_of_recycled_: the next one's warm start.
+  /// preconditioner: the next one's warm start.
   RecycledStart newton_recycled_;
-  double bh_of_recycled_ = 0.0;
   bool first_pass_ = true;  ///< the step's first contact pass (or no contact)
   VecX x_best_, v_best_, g_best_;  ///< the line search's best trial
   VecX v_start_;                   ///< Newton's first iterate

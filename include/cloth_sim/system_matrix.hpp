@@ -149,7 +149,7 @@ class SystemMatrix {
   /// without it there are no relaxed products.
   void setPsdCouplingBound(double bound) const {
     psd_coupling_bound_ = bound;
-    relaxed_valid_ = false;
+    ratio_valid_ = false;
   }
   /// y = A x with the springs' terms in float (node blocks, pair terms and
   /// vectors in double), whatever the tolerance: CG bounds its error itself.
@@ -162,7 +162,7 @@ class SystemMatrix {
 
  private:
   void changed() {
-    full_diag_valid_ = false, single_valid_ = false, ratio_valid_ = false, relaxed_valid_ = false;
+    full_diag_valid_ = false, single_valid_ = false, ratio_valid_ = false;
     psd_coupling_bound_ = INFINITY;
   }
   void multiplySplitDouble(const double* x, double* y) const;
@@ -200,8 +200,6 @@ class SystemMatrix {
   mutable bool ratio_valid_ = false;
   mutable double psd_coupling_bound_ = INFINITY;  ///< setPsdCouplingBound's
   std::pair<double, double> node_scale_range_{0.0, 0.0};  ///< smallest, largest (reset)
-  mutable double relaxed_rounding_ = 0.0;
-  mutable bool relaxed_valid_ = false;
 };
 
 inline SymBlock SystemMatrix::couplingBlock(int spring) const {

@@ -279,12 +279,11 @@ StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v)
     // contact hard case c4 (a cloth stiffened on a table, stretch 1e7, dt
     // 0.1) from 11 rejected sub-steps to a failure on energy after 8
     // halvings. Later contact passes start from the last pass.
-    if (h != h_of_recycled_) recycled_.clear();
-    h_of_recycled_ = h;
+    recycled_.useFor(h);
     if (recycled_iterations_ >= 2 && !contact_on_) recycled_.guess(rhs_, &dv_);
   }
   const CgResult cg = solveLinear(model, rhs_, dv_);
-  if (first_pass_) {
+  if (first_pass_ && !contact_on_) {  // kept only where a guess uses it
     recycled_.record(dv_, rhs_);
     recycled_iterations_ = cg.iterations;
   }
@@ -473,8 +472,7 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
     const bool recycle = it == 0 && !again &&
                          (preconditioner_ == Preconditioner::BlockJacobi ||
                           preconditioner_ == Preconditioner::None);
-    if (recycle && bh != bh_of_recycled_) newton_recycled_.clear();
-    if (recycle) bh_of_recycled_ = bh;
+    if (recycle) newton_recycled_.useFor(bh);
     if (it == 0 && !again && delta_first_.size() == v1.size()) {
       if (!recycle || !newton_recycled_.guess(rhs_, &delta_)) delta_ = delta_first_;
     } else {

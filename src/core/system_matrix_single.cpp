@@ -122,19 +122,14 @@ double SystemMatrix::couplingToMassRatio() const {
 }
 
 double SystemMatrix::relaxedSingleRounding() const {
-  if (relaxed_valid_) return relaxed_rounding_;
-  relaxed_valid_ = true;
-  relaxed_rounding_ = INFINITY;
   // Without extra node blocks or pair terms, A = node blocks + PSD couplings
-  // >= the node blocks.
-  if (!layout_ || !node_blocks_.empty() || !pair_terms_.empty() ||
-      !std::isfinite(psd_coupling_bound_)) {
-    return relaxed_rounding_;
-  }
+  // >= the node blocks; the ratio is then the assembler's bound's.
   const auto [lightest, heaviest] = node_scale_range_;
-  if (!(lightest > 0.0) || !std::isfinite(heaviest)) return relaxed_rounding_;
-  relaxed_rounding_ = kSingleRounding * (psd_coupling_bound_ / lightest) * (heaviest / lightest);
-  return relaxed_rounding_;
+  if (!layout_ || !node_blocks_.empty() || !pair_terms_.empty() ||
+      !std::isfinite(psd_coupling_bound_) || !(lightest > 0.0) || !std::isfinite(heaviest)) {
+    return INFINITY;
+  }
+  return kSingleRounding * couplingToMassRatio() * (heaviest / lightest);
 }
 
 void SystemMatrix::multiplySplitFloat(const double* xs, double* ys) const {
