@@ -56,6 +56,10 @@ struct ForceSweepIn {
   const double* valid = nullptr;
   const double* rest_length = nullptr;
   const double* rest_dir[3] = {};
+  /// Non-null: the slots' lengths |x_upper - x_lower| at these x, measured
+  /// already (energySweep's); implicit_euler's assembly (matrix and K w,
+  /// relative-velocity damping) reads them instead of taking square roots.
+  const double* length = nullptr;
   double stiffness = 0.0, damping = 0.0;
   bool along = true;            ///< along-spring damping (else relative velocity)
   bool project_compression = false;
@@ -71,6 +75,11 @@ struct ForceSweepOut {
   double* u[3] = {};    ///< the matrix coefficients (SystemMatrix::Coefficients)
   double* c = nullptr;
   double* hw[3] = {};   ///< held damping coefficient and axis, with `held`
+  /// Non-null (with iso, not with held): iso, axis and u again as floats
+  /// (SystemMatrix::singleCoefficients).
+  float* iso_single = nullptr;
+  float* axis_single = nullptr;
+  float* u_single[3] = {};
 };
 
 /// The forces (and, with `iso`, the coupling coefficients b K + a D) of one
@@ -78,10 +87,10 @@ struct ForceSweepOut {
 void forceSweep(const ForceSweepIn& in, const ForceSweepOut& out);
 
 /// Sum over the direction's springs of (l - L)^2, and the largest l / L - 1
-/// (or `max_strain` if larger).
+/// (or `max_strain` if larger); with `length`, each slot's l there.
 void energySweep(int slots, int offset, const double* const x[3], const double* valid,
                  const double* rest_length, const double* inv_rest_length, double* sum_sq,
-                 double* max_strain);
+                 double* max_strain, double* length = nullptr);
 
 }  // namespace sweeps
 }  // namespace cloth_sim

@@ -72,6 +72,15 @@ class SystemMatrix {
     changed();
     return coefficients_[direction];
   }
+  /// Direction `direction`'s float copies of iso, axis and u0..u2 (n apart),
+  /// for the assembly's sweep to write beside the double ones where the
+  /// matrix before the last reset() took float products: the float product
+  /// then needs no conversion pass (4 % of the seed's step). Null where
+  /// there are none to write (no float products last time, held damping
+  /// axes). Once every direction's is written, after coefficients():
+  /// singleWritten().
+  float* singleCoefficients(int direction);
+  void singleWritten() const { single_valid_ = true; }
   /// The layout the matrix was sized for (resize).
   const std::shared_ptr<const SpringLayout>& layout() const { return layout_; }
   /// Makes the held damping axes part of the matrix until reset().
@@ -168,6 +177,7 @@ class SystemMatrix {
   void multiplySplitDouble(const double* x, double* y) const;
   void multiplySplitSingle(const double* x, double* y) const;  // system_matrix_single.cpp
   void makeSingleCopies() const;
+  void sizeSingleCopies() const;  ///< single_dirs_ for this layout (terms' pads zero)
   std::shared_ptr<const SpringLayout> layout_;
   std::vector<double> node_scale_;  ///< node block = node_scale_ * I
   std::vector<Coefficients> coefficients_;  ///< per direction of the layout
@@ -195,6 +205,8 @@ class SystemMatrix {
   mutable double single_tolerance_ = 0.0;  ///< allowSinglePrecision's; 0: double
   mutable int single_products_ = 0;        ///< products since
   mutable bool single_valid_ = false;      ///< the float copies are of this matrix
+  mutable bool single_used_ = false;       ///< a float product since reset()
+  bool single_wanted_ = false;             ///< single_used_ before the last reset()
   mutable std::vector<double> coupled_;  ///< per node, couplingToMassRatio's sums
   mutable double ratio_ = 0.0;
   mutable bool ratio_valid_ = false;

@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
+#include <memory>
 
 #include "cloth_sim/spring_sweeps.hpp"
 
@@ -18,20 +20,6 @@ SpringParams springParams(const Model& model, const Spring& s) {
   p.rest_direction = s.rest_direction;
   return p;
 }
-
-namespace {
-
-void addExternalForces(const Model& model, const VecX& v, VecX& f) {
-  const int n = model.numNodes();
-  if (model.has_gravity) {
-    for (int i = 0; i < n; ++i) f.segment<3>(3 * i) = model.mass[i] * model.gravity;
-  } else {
-    f.setZero();
-  }
-  if (model.air_drag > 0.0) f.noalias() -= model.air_drag * v;
-}
-
-}  // namespace
 
 void springAxes(const Model& model, const VecX& x, std::vector<Vec3>& axes) {
   axes.resize(model.springs.size());
@@ -50,6 +38,15 @@ namespace {
 struct SweepBuffers {
   std::vector<double> x, v, w, held, f, kw;
   sweeps::PaddedTerms f_terms, kw_terms;
+  // The slots' lengths measureEnergy took (direction d's from d n) at
+  // `measured_x` of `measured_layout`, whose split is still in x while
+  // `x_is_measured`: implicit_euler's next assembly is at that x (the energy
+  // check measures the step's end, the next step starts there) and reads
+  // them instead of taking every spring's square root again.
+  std::vector<double> lengths;
+  VecX measured_x;
+  std::shared_ptr<const SpringLayout> measured_layout;
+  bool x_is_measured = false;
 };
 
 SweepBuffers& sweepBuffers() {
@@ -57,8 +54,23 @@ SweepBuffers& sweepBuffers() {
   return buffers;
 }
 
-/// f(x, v) over the springs' directions, added to f (3n, the external
-/// forces); with A, A's couplings b K + a D too; with w, K w into dfdx_w.
+/// f_c = m g_c - air_drag v_c on split vectors. Not a vectorised clone: no
+/// fused multiply-add, the rounding of the unsplit m g - (drag v) it replaced.
+void externalForcesSplit(const Model& model, const double* v, double* f) {
+  const int n = model.numNodes();
+  for (int c = 0; c < 3; ++c) {
+    const double g = model.has_gravity ? model.gravity[c] : 0.0;
+    double* fc = f + static_cast<size_t>(c) * n;
+    for (int i = 0; i < n; ++i) fc[i] = model.mass[i] * g;
+    if (model.air_drag > 0.0) {
+      const double* vc = v + static_cast<size_t>(c) * n;
+      for (int i = 0; i < n; ++i) fc[i] -= model.air_drag * vc[i];
+    }
+  }
+}
+
+/// f(x, v) = the external forces plus the springs' over their directions;
+/// with A, A's couplings b K + a D too; with w, K w into dfdx_w.
 void springSweeps(const Model& model, const VecX& x, const VecX& v, double a, double b,
                   bool project_compression, SystemMatrix* A, VecX& f, const VecX* w,
                   VecX* dfdx_w, const std::vector<Vec3>* damping_axes) {
@@ -66,12 +78,22 @@ void springSweeps(const Model& model, const VecX& x, const VecX& v, double a, do
   const int n = layout.num_nodes;
   const size_t size = 3 * static_cast<size_t>(n);
   SweepBuffers& buf = sweepBuffers();
-  buf.x.resize(size);
+  const bool along = model.damping_model == DampingModel::AlongSpring;
+  // At the x the energy check measured last: its split and lengths (the
+  // loop that reads lengths is implicit_euler's assembly's).
+  const bool measured = A && w == &v && !along && buf.x_is_measured &&
+                        buf.measured_layout == model.layout && x.size() == buf.measured_x.size() &&
+                        std::memcmp(x.data(), buf.measured_x.data(), x.size() * sizeof(double)) == 0;
+  if (!measured) {
+    buf.x.resize(size);
+    sweeps::splitComponents(x, buf.x.data());
+    buf.x_is_measured = false;
+  }
   buf.v.resize(size);
   buf.f.resize(size);
-  sweeps::splitComponents(x, buf.x.data());
+  f.resize(x.size());
   sweeps::splitComponents(v, buf.v.data());
-  sweeps::splitComponents(f, buf.f.data());
+  externalForcesSplit(model, buf.v.data(), buf.f.data());
   // K w of the velocities themselves (implicit_euler's h K v0): no second split.
   const bool w_is_v = w == &v;
   if (w) {
@@ -82,7 +104,6 @@ void springSweeps(const Model& model, const VecX& x, const VecX& v, double a, do
     }
   }
   const double* w_split = w_is_v ? buf.v.data() : buf.w.data();
-  const bool along = model.damping_model == DampingModel::AlongSpring;
   const bool held = along && damping_axes;
   if (held) {  // per spring to per slot: direction d's axes at held[3 d n + c n + node]
     buf.held.resize(layout.directions.size() * size);
@@ -92,6 +113,7 @@ void springSweeps(const Model& model, const VecX& x, const VecX& v, double a, do
     }
     if (A) A->useDampingAxes();
   }
+  bool single_written = A && !layout.directions.empty();
   for (size_t d = 0; d < layout.directions.size(); ++d) {
     const SpringDirection& dir = layout.directions[d];
     const SpringGroup& g = model.groups[static_cast<int>(dir.type)];
@@ -107,6 +129,7 @@ void springSweeps(const Model& model, const VecX& x, const VecX& v, double a, do
     }
     in.valid = dir.valid.data();
     in.rest_length = dir.rest_length.data();
+    if (measured) in.length = buf.lengths.data() + d * n;
     in.stiffness = g.stiffness;
     in.damping = g.damping;
     in.along = along;
@@ -129,11 +152,20 @@ void springSweeps(const Model& model, const VecX& x, const VecX& v, double a, do
         out.c = co.c.data();
         for (int c = 0; c < 3; ++c) out.hw[c] = co.w[c].data();
       }
+      // Float copies where the last matrix took float products.
+      float* single = A->singleCoefficients(static_cast<int>(d));
+      single_written = single_written && single;
+      if (single) {
+        out.iso_single = single;
+        out.axis_single = single + n;
+        for (int c = 0; c < 3; ++c) out.u_single[c] = single + (2 + c) * n;
+      }
     }
     sweeps::forceSweep(in, out);
     buf.f_terms.addDifferences(buf.f.data());
     if (w) buf.kw_terms.addDifferences(buf.kw.data());
   }
+  if (single_written) A->singleWritten();
   sweeps::joinComponents(buf.f.data(), n, f.data());
   if (w) sweeps::joinComponents(buf.kw.data(), n, dfdx_w->data());
 }
@@ -142,8 +174,6 @@ void springSweeps(const Model& model, const VecX& x, const VecX& v, double a, do
 
 void computeForces(const Model& model, const VecX& x, const VecX& v, VecX& f,
                    const std::vector<Vec3>* damping_axes) {
-  f.resize(x.size());
-  addExternalForces(model, v, f);
   springSweeps(model, x, v, 0.0, 0.0, false, nullptr, f, nullptr, nullptr, damping_axes);
 }
 
@@ -152,8 +182,6 @@ void assembleSystem(const Model& model, const VecX& x, const VecX& v, double a, 
                     VecX* dfdx_w, const std::vector<Vec3>* damping_axes) {
   A.resize(model.layout);
   A.reset(model.mass, a * model.air_drag);
-  f.resize(x.size());
-  addExternalForces(model, v, f);
   if (dfdx_w) dfdx_w->resize(x.size());
   springSweeps(model, x, v, a, b, project_compression, &A, f, dfdx_w ? w : nullptr, dfdx_w,
                damping_axes);
@@ -181,13 +209,18 @@ EnergyParts measureEnergy(const Model& model, const VecX& x, const VecX& v) {
   SweepBuffers& buf = sweepBuffers();
   buf.x.resize(3 * static_cast<size_t>(n));
   sweeps::splitComponents(x, buf.x.data());
+  buf.lengths.resize(layout.directions.size() * static_cast<size_t>(n));
   const double* split[3] = {buf.x.data(), buf.x.data() + n, buf.x.data() + 2 * n};
   double sum[kNumSpringTypes] = {};  // of (l - L)^2, per group
-  for (const SpringDirection& dir : layout.directions) {
+  for (size_t d = 0; d < layout.directions.size(); ++d) {
+    const SpringDirection& dir = layout.directions[d];
     sweeps::energySweep(dir.slots, dir.offset, split, dir.valid.data(), dir.rest_length.data(),
                         dir.inv_rest_length.data(), &sum[static_cast<int>(dir.type)],
-                        &e.max_strain);
+                        &e.max_strain, buf.lengths.data() + d * n);
   }
+  buf.measured_x = x;
+  buf.measured_layout = model.layout;
+  buf.x_is_measured = true;
   for (int t = 0; t < kNumSpringTypes; ++t) e.elastic += 0.5 * model.groups[t].stiffness * sum[t];
   return e;
 }

@@ -88,10 +88,12 @@ void addSums(int n, int offset, const double* __restrict t, double* __restrict y
 }
 
 /// forceSweep's loop for one combination of outputs and damping.
-template <bool kMatrix, bool kKw, bool kHeld, bool kAlong>
+template <bool kMatrix, bool kKw, bool kHeld, bool kAlong, bool kKnownLength = false,
+          bool kSingle = false>
 inline __attribute__((always_inline)) void forceLoop(const ForceSweepIn& in,
                                                      const ForceSweepOut& out) {
   const int o = in.offset;
+  const double* __restrict known = in.length;
   const double *__restrict x0 = in.x[0], *__restrict x1 = in.x[1], *__restrict x2 = in.x[2];
   const double *__restrict v0 = in.v[0], *__restrict v1 = in.v[1], *__restrict v2 = in.v[2];
   const double *__restrict w0 = in.w[0], *__restrict w1 = in.w[1], *__restrict w2 = in.w[2];
@@ -105,6 +107,9 @@ inline __attribute__((always_inline)) void forceLoop(const ForceSweepIn& in,
   double *__restrict iso = out.iso, *__restrict axis = out.axis;
   double *__restrict u0s = out.u[0], *__restrict u1s = out.u[1], *__restrict u2s = out.u[2];
   double *__restrict cs = out.c;
+  float *__restrict iso_f = out.iso_single, *__restrict axis_f = out.axis_single;
+  float *__restrict u0f = out.u_single[0], *__restrict u1f = out.u_single[1],
+                    *__restrict u2f = out.u_single[2];
   double *__restrict hw0 = out.hw[0], *__restrict hw1 = out.hw[1], *__restrict hw2 = out.hw[2];
   const double k = in.stiffness, c = in.damping, a = in.a, b = in.b;
   const double floor = in.project_compression ? 0.0 : -HUGE_VAL;
@@ -114,7 +119,7 @@ inline __attribute__((always_inline)) void forceLoop(const ForceSweepIn& in,
 #pragma GCC ivdep
   for (int p = 0; p < slots; ++p) {
     const double d0 = x0[p + o] - x0[p], d1 = x1[p + o] - x1[p], d2 = x2[p + o] - x2[p];
-    const double l = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2);
+    const double l = kKnownLength ? known[p] : std::sqrt(d0 * d0 + d1 * d1 + d2 * d2);
     const double L = rest[p];
     // springDirection and isDegenerate (spring_forces.hpp), as selects.
     const bool degenerate = !(l > kDegenerateLength * std::max(L, 1.0));
@@ -141,11 +146,20 @@ inline __attribute__((always_inline)) void forceLoop(const ForceSweepIn& in,
       f2[p] = s * u2 + cm * dv2;
     }
     if (kMatrix) {
-      iso[p] = b * k_iso + (kAlong ? 0.0 : a * cm);
-      axis[p] = b * k_axis + (kAlong && !kHeld ? a * cm : 0.0);
+      const double iso_p = b * k_iso + (kAlong ? 0.0 : a * cm);
+      const double axis_p = b * k_axis + (kAlong && !kHeld ? a * cm : 0.0);
+      iso[p] = iso_p;
+      axis[p] = axis_p;
       u0s[p] = u0;
       u1s[p] = u1;
       u2s[p] = u2;
+      if (kSingle) {
+        iso_f[p] = static_cast<float>(iso_p);
+        axis_f[p] = static_cast<float>(axis_p);
+        u0f[p] = static_cast<float>(u0);
+        u1f[p] = static_cast<float>(u1);
+        u2f[p] = static_cast<float>(u2);
+      }
       if (kHeld) {
         cs[p] = a * cm;
         hw0[p] = e0;
@@ -163,26 +177,39 @@ inline __attribute__((always_inline)) void forceLoop(const ForceSweepIn& in,
   }
 }
 
-template <bool kMatrix, bool kKw>
+template <bool kMatrix, bool kKw, bool kSingle>
 inline __attribute__((always_inline)) void forceLoopByDamping(const ForceSweepIn& in,
                                                               const ForceSweepOut& out) {
   if (!in.along) {
-    forceLoop<kMatrix, kKw, false, false>(in, out);
+    forceLoop<kMatrix, kKw, false, false, false, kSingle>(in, out);
   } else if (in.held[0]) {
-    forceLoop<kMatrix, kKw, true, true>(in, out);
+    forceLoop<kMatrix, kKw, true, true>(in, out);  // no float copies with held axes
   } else {
-    forceLoop<kMatrix, kKw, false, true>(in, out);
+    forceLoop<kMatrix, kKw, false, true, false, kSingle>(in, out);
   }
 }
 
 CLOTH_SIM_VECTORISED
 void forceSweepDispatch(const ForceSweepIn& in, const ForceSweepOut& out) {
+  const bool single = out.iso_single != nullptr;
   if (!out.iso) {
-    forceLoopByDamping<false, false>(in, out);
+    forceLoopByDamping<false, false, false>(in, out);
+  } else if (in.w[0] && in.length && !in.along) {  // implicit_euler's, at a measured x
+    if (single) {
+      forceLoop<true, true, false, false, true, true>(in, out);
+    } else {
+      forceLoop<true, true, false, false, true, false>(in, out);
+    }
   } else if (in.w[0]) {
-    forceLoopByDamping<true, true>(in, out);
+    if (single) {
+      forceLoopByDamping<true, true, true>(in, out);
+    } else {
+      forceLoopByDamping<true, true, false>(in, out);
+    }
+  } else if (single) {
+    forceLoopByDamping<true, false, true>(in, out);
   } else {
-    forceLoopByDamping<true, false>(in, out);
+    forceLoopByDamping<true, false, false>(in, out);
   }
 }
 
@@ -190,11 +217,12 @@ CLOTH_SIM_VECTORISED
 void energyTerms(int slots, int offset, const double* __restrict x0, const double* __restrict x1,
                  const double* __restrict x2, const double* __restrict valid,
                  const double* __restrict rest, const double* __restrict inv_rest,
-                 double* __restrict sq, double* __restrict strain) {
+                 double* __restrict sq, double* __restrict strain, double* __restrict length) {
   for (int p = 0; p < slots; ++p) {
     const double d0 = x0[p + offset] - x0[p], d1 = x1[p + offset] - x1[p],
                  d2 = x2[p + offset] - x2[p];
     const double l = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2);
+    length[p] = l;
     const double m = valid[p], stretch = (l - rest[p]) * m, s = l * inv_rest[p] - 1.0;
     sq[p] = stretch * stretch;
     strain[p] = m > 0.0 ? s : -HUGE_VAL;
@@ -232,12 +260,16 @@ void forceSweep(const ForceSweepIn& in, const ForceSweepOut& out) { forceSweepDi
 
 void energySweep(int slots, int offset, const double* const x[3], const double* valid,
                  const double* rest_length, const double* inv_rest_length, double* sum_sq,
-                 double* max_strain) {
-  thread_local std::vector<double> sq, strain;
+                 double* max_strain, double* length) {
+  thread_local std::vector<double> sq, strain, lengths;
   sq.resize(std::max(slots, 0));
   strain.resize(std::max(slots, 0));
+  if (!length) {
+    lengths.resize(std::max(slots, 0));
+    length = lengths.data();
+  }
   energyTerms(slots, offset, x[0], x[1], x[2], valid, rest_length, inv_rest_length, sq.data(),
-              strain.data());
+              strain.data(), length);
   // Eigen's reductions: vectorised, partial sums and maxima.
   if (slots > 0) {
     *sum_sq += Eigen::Map<const Eigen::ArrayXd>(sq.data(), slots).sum();

@@ -97,6 +97,8 @@ void SystemMatrix::reset(const std::vector<double>& mass, double extra_diagonal)
   node_blocks_.clear();
   pair_terms_.clear();
   has_damping_axes_ = false;
+  single_wanted_ = single_used_;
+  single_used_ = false;
   changed();
 }
 

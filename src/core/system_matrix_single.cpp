@@ -154,16 +154,34 @@ void SystemMatrix::multiplySplit(const double* xs, double* ys) const {
   }
 }
 
-void SystemMatrix::makeSingleCopies() const {
+void SystemMatrix::sizeSingleCopies() const {
   const int n = numNodes();
   single_dirs_.resize(coefficients_.size());
   for (size_t k = 0; k < coefficients_.size(); ++k) {
-    const Coefficients& d = coefficients_[k];
     SingleDirection& s = single_dirs_[k];
     const int o = layout_->directions[k].offset;
     const size_t terms = 3 * static_cast<size_t>(n + o);
     if (s.terms.size() != terms) s.terms.assign(terms, 0.0f);  // the padding stays zero
-    s.coefficients.resize((has_damping_axes_ ? 9 : 5) * static_cast<size_t>(n));
+    // Slots a sweep does not write stay zero, as their double coefficients.
+    s.coefficients.resize((has_damping_axes_ ? 9 : 5) * static_cast<size_t>(n), 0.0f);
+  }
+}
+
+float* SystemMatrix::singleCoefficients(int direction) {
+  if (!single_wanted_ || has_damping_axes_ || !layout_) return nullptr;
+  if (single_dirs_.size() != coefficients_.size() ||
+      single_dirs_[direction].coefficients.size() != 5 * static_cast<size_t>(numNodes())) {
+    sizeSingleCopies();
+  }
+  return single_dirs_[direction].coefficients.data();
+}
+
+void SystemMatrix::makeSingleCopies() const {
+  const int n = numNodes();
+  sizeSingleCopies();
+  for (size_t k = 0; k < coefficients_.size(); ++k) {
+    const Coefficients& d = coefficients_[k];
+    SingleDirection& s = single_dirs_[k];
     float* out = s.coefficients.data();
     for (const std::vector<double>* a : {&d.iso, &d.axis, &d.u[0], &d.u[1], &d.u[2]}) {
       toSingle(n, a->data(), out);
@@ -181,6 +199,7 @@ void SystemMatrix::makeSingleCopies() const {
 
 void SystemMatrix::multiplySplitSingle(const double* xs, double* ys) const {
   const int n = numNodes();
+  single_used_ = true;
   x_single_.resize(3 * static_cast<size_t>(n));
   sum_single_.resize(3 * static_cast<size_t>(n));
   toSingle(3 * n, xs, x_single_.data());
