@@ -24,5 +24,15 @@ bool allFinite(int n, const double* x);
 /// y = a x + b y (b = 0: y = a x, whatever y held).
 void scaleAdd(int n, double a, const double* x, double b, double* y);
 
+/// The most vectors dots() and combine() take at once.
+constexpr int kMaxVectors = 8;
+/// out[k] = v[k] . b for k < count (<= kMaxVectors): count dots in one pass
+/// over b, each summed as dot() sums it (the same result).
+void dots(int n, int count, const double* const* v, const double* b, double* out);
+/// y = sum_k c[k] v[k] (count from 1 to kMaxVectors) in one pass, summed in
+/// the order of scaleAdd(c[0] v[0], b 0) then scaleAdd(c[k] v[k], b 1) for
+/// k = 1, 2, ... (the same result).
+void combine(int n, int count, const double* const* v, const double* c, double* y);
+
 }  // namespace cg_kernels
 }  // namespace cloth_sim

@@ -20,9 +20,10 @@ namespace cloth_sim {
 
 class RecycledStart {
  public:
-  /// Keeps up to `capacity` answers (at least 1).
+  /// Keeps up to `capacity` answers (1 to kMaxCapacity).
   explicit RecycledStart(int capacity = kDefaultCapacity);
   static constexpr int kDefaultCapacity = 6;
+  static constexpr int kMaxCapacity = 8;
 
   /// Forgets every answer (a new step size, say).
   void clear();
@@ -48,11 +49,15 @@ class RecycledStart {
   double step_ = 0.0;             ///< useFor's
   std::vector<VecX> answers_;     ///< V, by slot
   std::vector<VecX> rights_;      ///< B, by slot
-  Eigen::MatrixXd gram_;          ///< B^T B by slot
-  Eigen::VectorXd projected_;     ///< B^T b of the last guess, by slot
+  // At most kMaxCapacity square: kept on the stack, no allocation a step.
+  using Small = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxCapacity, kMaxCapacity>;
+  using SmallVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxCapacity, 1>;
+  Small gram_;                    ///< B^T B by slot
+  SmallVector projected_;         ///< B^T b of the last guess, by slot
   const double* guessed_ = nullptr;  ///< that b's data (record reuses projected_)
-  Eigen::VectorXd coefficients_;
-  Eigen::MatrixXd normal_;
+  SmallVector coefficients_;
+  Small normal_;
+  Eigen::LDLT<Small> ldlt_;
 };
 
 }  // namespace cloth_sim

@@ -104,5 +104,84 @@ void scaleAdd(int n, double a, const double* __restrict x, double b, double* __r
   }
 }
 
+namespace {
+
+/// Four doubles; the compiler's vector extension, so that each partial sum's
+/// multiply-add is the one dot's loop compiles to (a loop over several
+/// vectors at once was vectorised across them, without multiply-adds for
+/// some counts: other results than dot's).
+typedef double Lanes __attribute__((vector_size(32)));
+
+inline Lanes loadLanes(const double* p) {
+  Lanes v;
+  __builtin_memcpy(&v, p, sizeof v);
+  return v;
+}
+
+template <int kCount>
+inline __attribute__((always_inline)) void dotsOf(int n, const double* const* v,
+                                                  const double* __restrict b, double* out) {
+  Lanes lo[kCount], hi[kCount];  // partial sums 0..3 and 4..7, as dot's s[8]
+  for (int j = 0; j < kCount; ++j) lo[j] = hi[j] = Lanes{0.0, 0.0, 0.0, 0.0};
+  int i = 0;
+  for (; i + 8 <= n; i += 8) {
+    const Lanes b_lo = loadLanes(b + i), b_hi = loadLanes(b + i + 4);
+    for (int j = 0; j < kCount; ++j) {
+      lo[j] += loadLanes(v[j] + i) * b_lo;
+      hi[j] += loadLanes(v[j] + i + 4) * b_hi;
+    }
+  }
+  for (int j = 0; j < kCount; ++j) {
+    double s[8] = {lo[j][0], lo[j][1], lo[j][2], lo[j][3], hi[j][0], hi[j][1], hi[j][2], hi[j][3]};
+    for (int t = i; t < n; ++t) s[0] += v[j][t] * b[t];
+    out[j] = fold(s);
+  }
+}
+
+template <int kCount>
+inline __attribute__((always_inline)) void combineOf(int n, const double* const* v,
+                                                     const double* c, double* __restrict y) {
+  // As scaleAdd's a x + b y with b = 1 compiles: c[j] v[j] + t with
+  // multiply-adds where they exist. The first product plus zero is rounded
+  // as y = a x rounds it, and is no product the next add could fuse instead.
+  for (int i = 0; i < n; ++i) {
+    double t = c[0] * v[0][i] + 0.0;
+    for (int j = 1; j < kCount; ++j) t = c[j] * v[j][i] + t;
+    y[i] = t;
+  }
+}
+
+}  // namespace
+
+CLOTH_SIM_VECTORISED
+void dots(int n, int count, const double* const* v, const double* b, double* out) {
+  switch (count) {
+    case 1: dotsOf<1>(n, v, b, out); break;
+    case 2: dotsOf<2>(n, v, b, out); break;
+    case 3: dotsOf<3>(n, v, b, out); break;
+    case 4: dotsOf<4>(n, v, b, out); break;
+    case 5: dotsOf<5>(n, v, b, out); break;
+    case 6: dotsOf<6>(n, v, b, out); break;
+    case 7: dotsOf<7>(n, v, b, out); break;
+    case 8: dotsOf<8>(n, v, b, out); break;
+    default: break;
+  }
+}
+
+CLOTH_SIM_VECTORISED
+void combine(int n, int count, const double* const* v, const double* c, double* y) {
+  switch (count) {
+    case 1: combineOf<1>(n, v, c, y); break;
+    case 2: combineOf<2>(n, v, c, y); break;
+    case 3: combineOf<3>(n, v, c, y); break;
+    case 4: combineOf<4>(n, v, c, y); break;
+    case 5: combineOf<5>(n, v, c, y); break;
+    case 6: combineOf<6>(n, v, c, y); break;
+    case 7: combineOf<7>(n, v, c, y); break;
+    case 8: combineOf<8>(n, v, c, y); break;
+    default: break;
+  }
+}
+
 }  // namespace cg_kernels
 }  // namespace cloth_sim

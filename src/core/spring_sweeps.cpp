@@ -87,12 +87,16 @@ void addSums(int n, int offset, const double* __restrict t, double* __restrict y
   for (int p = 0; p < n; ++p) y[p] += t[p + offset] + t[p];
 }
 
-/// forceSweep's loop for one combination of outputs and damping.
-template <bool kMatrix, bool kKw, bool kHeld, bool kAlong, bool kKnownLength = false,
-          bool kSingle = false>
-inline __attribute__((always_inline)) void forceLoop(const ForceSweepIn& in,
-                                                     const ForceSweepOut& out) {
+/// forceSweep's loop for one combination of outputs and damping. kRegular:
+/// every spring taken as longer than kDegenerateLength (no rest directions
+/// loaded, no selects), returning false if one was not, to be swept again
+/// whole without kRegular. kWisV: w is v (implicit_euler's K v0).
+template <bool kMatrix, bool kKw, bool kHeld, bool kAlong, bool kKnownLength, bool kSingle,
+          bool kWisV, bool kRegular>
+inline __attribute__((always_inline)) bool forceLoopOnce(const ForceSweepIn& in,
+                                                         const ForceSweepOut& out) {
   const int o = in.offset;
+  int irregular = 0;
   const double* __restrict known = in.length;
   const double *__restrict x0 = in.x[0], *__restrict x1 = in.x[1], *__restrict x2 = in.x[2];
   const double *__restrict v0 = in.v[0], *__restrict v1 = in.v[1], *__restrict v2 = in.v[2];
@@ -124,12 +128,19 @@ inline __attribute__((always_inline)) void forceLoop(const ForceSweepIn& in,
     // springDirection and isDegenerate (spring_forces.hpp), as selects.
     const bool degenerate = !(l > kDegenerateLength * std::max(L, 1.0));
     const double inv = 1.0 / l;
-    const double rd0 = r0[p], rd1 = r1[p], rd2 = r2[p];  // loaded either way: selects, not branches
-    const double u0 = degenerate ? rd0 : d0 * inv, u1 = degenerate ? rd1 : d1 * inv,
-                 u2 = degenerate ? rd2 : d2 * inv;
+    double u0 = d0 * inv, u1 = d1 * inv, u2 = d2 * inv;
+    double t = 1.0 - L * inv;
+    if (kRegular) {
+      irregular |= degenerate;
+    } else {
+      // Loaded either way: selects, not branches.
+      const double rd0 = r0[p], rd1 = r1[p], rd2 = r2[p];
+      u0 = degenerate ? rd0 : u0, u1 = degenerate ? rd1 : u1, u2 = degenerate ? rd2 : u2;
+      t = degenerate ? 0.0 : t;
+    }
     // K = k (1 - t) u u^T + k t I, t = 1 - L/l (0 when degenerate; clamped
     // at 0 under compression when projecting): kept as two scalars.
-    const double t = std::max(degenerate ? 0.0 : 1.0 - L * inv, floor);
+    t = std::max(t, floor);
     const double km = k * valid[p], cm = c * valid[p];  // empty slots: nothing
     const double k_iso = km * t, k_axis = km - k_iso;
     const double e0 = kHeld ? h0[p] : u0, e1 = kHeld ? h1[p] : u1, e2 = kHeld ? h2[p] : u2;
@@ -168,13 +179,25 @@ inline __attribute__((always_inline)) void forceLoop(const ForceSweepIn& in,
       }
     }
     if (kKw) {
-      const double dw0 = w0[p + o] - w0[p], dw1 = w1[p + o] - w1[p], dw2 = w2[p + o] - w2[p];
+      const double dw0 = kWisV ? dv0 : w0[p + o] - w0[p], dw1 = kWisV ? dv1 : w1[p + o] - w1[p],
+                   dw2 = kWisV ? dv2 : w2[p + o] - w2[p];
       const double q = k_axis * (u0 * dw0 + u1 * dw1 + u2 * dw2);
       kw0[p] = k_iso * dw0 + q * u0;
       kw1[p] = k_iso * dw1 + q * u1;
       kw2[p] = k_iso * dw2 + q * u2;
     }
   }
+  return irregular == 0;
+}
+
+template <bool kMatrix, bool kKw, bool kHeld, bool kAlong, bool kKnownLength = false,
+          bool kSingle = false, bool kWisV = false>
+inline __attribute__((always_inline)) void forceLoop(const ForceSweepIn& in,
+                                                     const ForceSweepOut& out) {
+  if (forceLoopOnce<kMatrix, kKw, kHeld, kAlong, kKnownLength, kSingle, kWisV, true>(in, out)) {
+    return;
+  }
+  forceLoopOnce<kMatrix, kKw, kHeld, kAlong, kKnownLength, kSingle, kWisV, false>(in, out);
 }
 
 template <bool kMatrix, bool kKw, bool kSingle>
@@ -194,11 +217,12 @@ void forceSweepDispatch(const ForceSweepIn& in, const ForceSweepOut& out) {
   const bool single = out.iso_single != nullptr;
   if (!out.iso) {
     forceLoopByDamping<false, false, false>(in, out);
-  } else if (in.w[0] && in.length && !in.along) {  // implicit_euler's, at a measured x
+  } else if (in.w[0] == in.v[0] && in.w[1] == in.v[1] && in.w[2] == in.v[2] && in.length &&
+             !in.along) {  // implicit_euler's, at a measured x
     if (single) {
-      forceLoop<true, true, false, false, true, true>(in, out);
+      forceLoop<true, true, false, false, true, true, true>(in, out);
     } else {
-      forceLoop<true, true, false, false, true, false>(in, out);
+      forceLoop<true, true, false, false, true, false, true>(in, out);
     }
   } else if (in.w[0]) {
     if (single) {

@@ -4,7 +4,9 @@
 // cloth's.
 #include <gtest/gtest.h>
 
+#include <cstring>
 #include <random>
+#include <vector>
 
 #include "cloth_sim/cg_kernels.hpp"
 #include "cloth_sim/constraint_filter.hpp"
@@ -41,6 +43,32 @@ TEST(CgKernels, MatchThePlainVectorOperations) {
     VecX d = p;
     cg_kernels::updateDirection(n, -1.5, q.data(), d.data());
     EXPECT_LE((d - (q - 1.5 * p)).norm(), 1e-15 * scale);
+  }
+}
+
+// The recycled start's one-pass kernels must give what the separate dots and
+// scaleAdds they replace give, to the bit: a guess must not depend on how
+// its products were grouped.
+TEST(CgKernels, DotsAndCombineEqualDotAndScaleAddExactly) {
+  for (int n : {1, 7, 8, 9, 23, 768}) {
+    std::mt19937 rng(n + 5);
+    std::vector<VecX> v;
+    const double* p[cg_kernels::kMaxVectors];
+    for (int k = 0; k < cg_kernels::kMaxVectors; ++k) v.push_back(randomVector(n, rng));
+    for (int k = 0; k < cg_kernels::kMaxVectors; ++k) p[k] = v[k].data();
+    const VecX b = randomVector(n, rng), c = 3.0 * randomVector(cg_kernels::kMaxVectors, rng);
+    for (int count = 1; count <= cg_kernels::kMaxVectors; ++count) {
+      SCOPED_TRACE("n = " + std::to_string(n) + ", count = " + std::to_string(count));
+      double out[cg_kernels::kMaxVectors];
+      cg_kernels::dots(n, count, p, b.data(), out);
+      VecX y(n), y_ref(n);
+      cg_kernels::combine(n, count, p, c.data(), y.data());
+      for (int k = 0; k < count; ++k) {
+        EXPECT_EQ(out[k], cg_kernels::dot(n, p[k], b.data()));
+        cg_kernels::scaleAdd(n, c[k], p[k], k == 0 ? 0.0 : 1.0, y_ref.data());
+      }
+      EXPECT_EQ(0, std::memcmp(y.data(), y_ref.data(), sizeof(double) * n));
+    }
   }
 }
 

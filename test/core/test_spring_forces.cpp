@@ -118,6 +118,9 @@ TEST(SpringForce, HookeanMagnitudeAndEnergy) {
 #include "cloth_sim/forces.hpp"
 #include "scene_builders.hpp"
 
+#include <cmath>
+#include <cstring>
+
 namespace cloth_sim {
 namespace {
 
@@ -202,6 +205,70 @@ TEST(Assembly, HeldDampingAxesGiveTheExactDerivative) {
     Aw_blocks.segment<3>(3 * sp.j) -= S * w.segment<3>(3 * sp.i);
   }
   EXPECT_LE((Aw_blocks - Aw).norm(), 1e-12 * Aw.norm());
+}
+
+}  // namespace
+}  // namespace cloth_sim
+
+namespace cloth_sim {
+namespace {
+
+/// Everything an assembly writes that a solve reads, as bits.
+struct AssemblyOut {
+  VecX f, kv, Ap_double, Ap_float;
+};
+
+AssemblyOut assembleAt(const Model& m, const VecX& x, const VecX& v, SystemMatrix& A) {
+  AssemblyOut o;
+  const double h = 0.01;
+  assembleSystem(m, x, v, h, h * h, /*project_compression=*/true, A, o.f, &v, &o.kv);
+  const int n = m.numNodes();
+  std::vector<double> p(3 * n), y(3 * n);
+  for (int k = 0; k < 3 * n; ++k) p[k] = std::sin(0.7 * k);
+  A.multiplySplit(p.data(), y.data());
+  o.Ap_double = Eigen::Map<VecX>(y.data(), 3 * n);
+  A.multiplySplitFloat(p.data(), y.data());
+  o.Ap_float = Eigen::Map<VecX>(y.data(), 3 * n);
+  return o;
+}
+
+bool bitwiseEqual(const VecX& a, const VecX& b) {
+  return a.size() == b.size() &&
+         std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<size_t>(a.size())) == 0;
+}
+
+// implicit_euler's assembly takes two shortcuts (forces.cpp): it reads the
+// spring lengths measureEnergy took at the same x, and it writes the float
+// coefficients itself once a product went float. Neither may change a bit:
+// checked against an assembly that took neither, on a cloth with a
+// zero-length spring (the sweep's second, degenerate-aware pass) and without.
+TEST(Assembly, ShortcutsChangeNoBit) {
+  Scene s = test::hangingCloth(6);
+  s.damping_model = DampingModel::RelativeVelocity;  // the loop that reads lengths
+  s.air_drag = 0.2;
+  const Model m = buildModel(s);
+  for (bool degenerate : {false, true}) {
+    SCOPED_TRACE(degenerate ? "a zero-length spring" : "no degenerate spring");
+    VecX x, v, other_x, other_v;
+    test::perturbedState(m, 5, &x, &v);  // node 7 on node 8
+    if (!degenerate) x.segment<3>(3 * 7) += Vec3(0.03, -0.02, 0.01);
+    test::perturbedState(m, 6, &other_x, &other_v);
+    // Reference: the lengths were measured elsewhere, the matrix is fresh.
+    measureEnergy(m, other_x, other_v);
+    SystemMatrix fresh;
+    const AssemblyOut ref = assembleAt(m, x, v, fresh);
+    // Shortcuts: lengths measured at this x, a matrix whose last assembly
+    // took a float product (assembleAt's), so this one writes float copies.
+    SystemMatrix reused;
+    assembleAt(m, other_x, other_v, reused);
+    measureEnergy(m, x, v);
+    const AssemblyOut got = assembleAt(m, x, v, reused);
+    EXPECT_TRUE(bitwiseEqual(got.f, ref.f));
+    EXPECT_TRUE(bitwiseEqual(got.kv, ref.kv));
+    EXPECT_TRUE(bitwiseEqual(got.Ap_double, ref.Ap_double));
+    EXPECT_TRUE(bitwiseEqual(got.Ap_float, ref.Ap_float));
+    EXPECT_TRUE(got.f.allFinite() && got.Ap_float.allFinite());
+  }
 }
 
 }  // namespace
