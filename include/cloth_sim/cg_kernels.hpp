@@ -14,6 +14,8 @@ double dot(int n, const double* a, const double* b);
 /// x += alpha p and r -= alpha q; returns r . r (the new residual's square).
 double updateSolution(int n, double alpha, const double* p, const double* q, double* x,
                       double* r);
+/// r -= q; returns r . r (as dot sums it).
+double subtractAndSquare(int n, const double* q, double* r);
 /// z = D^-1 r for m nodes, D^-1 given as symmetric blocks split by entry
 /// (inv[0..5][i]: xx, yy, zz, xy, xz, yz of node i); returns r . z.
 double blockJacobi(int m, const double* const inv[6], const double* r, double* z);

@@ -40,6 +40,7 @@ struct EnergyParts {
   /// self-repulsion's (self_repulsion.hpp): not measureEnergy's, the
   /// simulation adds it (Simulation::repulsionEnergy)
   double repulsion = 0.0;
+  bool finite = true;  ///< x and v were finite (measureEnergy's)
   double total() const { return kinetic + elastic + potential + repulsion; }
 };
 EnergyParts measureEnergy(const Model& model, const VecX& x, const VecX& v);

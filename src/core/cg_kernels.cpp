@@ -47,6 +47,24 @@ double updateSolution(int n, double alpha, const double* __restrict p,
 }
 
 CLOTH_SIM_VECTORISED
+double subtractAndSquare(int n, const double* __restrict q, double* __restrict r) {
+  double s[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+  int i = 0;
+  for (; i + 8 <= n; i += 8) {
+    for (int k = 0; k < 8; ++k) {
+      const double ri = r[i + k] - q[i + k];
+      r[i + k] = ri;
+      s[k] += ri * ri;
+    }
+  }
+  for (; i < n; ++i) {
+    r[i] -= q[i];
+    s[0] += r[i] * r[i];
+  }
+  return fold(s);
+}
+
+CLOTH_SIM_VECTORISED
 double blockJacobi(int m, const double* const inv[6], const double* __restrict r,
                    double* __restrict z) {
   const double *__restrict a0 = inv[0], *__restrict a1 = inv[1], *__restrict a2 = inv[2],

@@ -200,15 +200,62 @@ void assembleSystem(const Model& model, const VecX& x, const VecX& v, double a, 
   }
 }
 
+namespace {
+
+/// measureEnergy's one pass over the nodes: x split by component into
+/// `split` and copied into `copy`, the kinetic and gravity energies summed
+/// as kineticEnergy and gravityEnergy sum them (the same partial sums, in
+/// the same order: the same results), and whether x and v are finite.
+void nodePass(const Model& model, const VecX& x, const VecX& v, double* split, double* copy,
+              double* kinetic, double* gravity, bool* finite) {
+  const int n = model.numNodes();
+  const double* m = model.mass.data();
+  const double* w = v.data();
+  const double* y = x.data();
+  const double g0 = model.gravity[0], g1 = model.gravity[1], g2 = model.gravity[2];
+  double e[4] = {0.0, 0.0, 0.0, 0.0}, p[4] = {0.0, 0.0, 0.0, 0.0};
+  double nan[4] = {0.0, 0.0, 0.0, 0.0};  // u - u: 0 where finite, NaN elsewhere
+  int i = 0;
+  for (; i + 4 <= n; i += 4) {
+    for (int k = 0; k < 4; ++k) {
+      const int j = i + k;
+      const double* u = w + 3 * j;
+      const double* q = y + 3 * j;
+      e[k] += m[j] * (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
+      p[k] += m[j] * (g0 * q[0] + g1 * q[1] + g2 * q[2]);
+      nan[k] += ((u[0] - u[0]) + (u[1] - u[1])) + ((u[2] - u[2]) + (q[0] - q[0])) +
+                ((q[1] - q[1]) + (q[2] - q[2]));
+    }
+  }
+  for (int j = i; j < n; ++j) {
+    for (int c = 0; c < 3; ++c) nan[0] += (w[3 * j + c] - w[3 * j + c]) + (y[3 * j + c] - y[3 * j + c]);
+  }
+  *finite = ((nan[0] + nan[1]) + (nan[2] + nan[3])) == 0.0;
+  for (; i < n; ++i) {
+    e[0] += m[i] * v.segment<3>(3 * i).squaredNorm();
+    p[0] += m[i] * model.gravity.dot(x.segment<3>(3 * i));
+  }
+  for (int j = 0; j < n; ++j) {
+    split[j] = y[3 * j];
+    split[n + j] = y[3 * j + 1];
+    split[2 * n + j] = y[3 * j + 2];
+  }
+  std::copy(y, y + 3 * static_cast<size_t>(n), copy);
+  *kinetic = 0.5 * ((e[0] + e[1]) + (e[2] + e[3]));
+  *gravity = model.has_gravity ? -((p[0] + p[1]) + (p[2] + p[3])) : 0.0;
+}
+
+}  // namespace
+
 EnergyParts measureEnergy(const Model& model, const VecX& x, const VecX& v) {
   EnergyParts e;
-  e.kinetic = kineticEnergy(model, v);
-  e.potential = gravityEnergy(model, x);
   const SpringLayout& layout = *model.layout;
   const int n = layout.num_nodes;
   SweepBuffers& buf = sweepBuffers();
   buf.x.resize(3 * static_cast<size_t>(n));
-  sweeps::splitComponents(x, buf.x.data());
+  buf.measured_x.resize(x.size());
+  nodePass(model, x, v, buf.x.data(), buf.measured_x.data(), &e.kinetic, &e.potential,
+           &e.finite);
   buf.lengths.resize(layout.directions.size() * static_cast<size_t>(n));
   const double* split[3] = {buf.x.data(), buf.x.data() + n, buf.x.data() + 2 * n};
   double sum[kNumSpringTypes] = {};  // of (l - L)^2, per group
@@ -218,7 +265,6 @@ EnergyParts measureEnergy(const Model& model, const VecX& x, const VecX& v) {
                         dir.inv_rest_length.data(), &sum[static_cast<int>(dir.type)],
                         &e.max_strain, buf.lengths.data() + d * n);
   }
-  buf.measured_x = x;
   buf.measured_layout = model.layout;
   buf.x_is_measured = true;
   for (int t = 0; t < kNumSpringTypes; ++t) e.elastic += 0.5 * model.groups[t].stiffness * sum[t];

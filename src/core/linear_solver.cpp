@@ -345,9 +345,9 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
     sweeps::splitComponents(x, xs);
     A.multiplySplit(xs, ws.q.data());
     filter.applySplit(ws.q.data());
-    ws.r -= ws.q;
   }
-  double r_norm = std::sqrt(cg_kernels::dot(dim, rs, rs));
+  // r = b - A x0 and its norm in one pass (cold: r is b, its norm b's).
+  double r_norm = cold ? b_norm : std::sqrt(cg_kernels::subtractAndSquare(dim, ws.q.data(), rs));
   // A warm start worse than zero is dropped.
   if (!cold && !(r_norm <= b_norm)) {
     ws.x.setZero();

@@ -125,6 +125,7 @@ StepStats Simulation::step(double h) {
   // split changes nothing when it fails, and here where error control may
   // take the step back.
   checkpoint_.saved = false;
+  state_finite_ = false;  // an accepted attempt of this step sets it
   if (adaptive()) saveCheckpoint();
   StepStats stats = stepWithRecovery(h, 0);
   if (!stats.ok && scene_.solver.recovery && checkpoint_.saved) restoreCheckpoint();
@@ -133,7 +134,9 @@ StepStats Simulation::step(double h) {
   stats.h_min = std::ldexp(h, -stats.halvings);
   stats.energy = measures_.total();
   stats.max_strain = measures_.max_strain;
-  stats.finite = allFinite(x_) && allFinite(v_);
+  // The last accepted attempt measured the state it left finite (or not):
+  // no second pass over it.
+  stats.finite = (stats.ok && state_finite_) || (allFinite(x_) && allFinite(v_));
   last_stats_ = stats;
   return stats;
 }
@@ -365,6 +368,7 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
     return stats;
   }
   measures_ = after;
+  state_finite_ = after.finite;
   std::swap(x_prev_, x_save_);  // x_prev_ = state before this step
   std::swap(v_prev_, v_save_);
   // BDF2 extrapolates from this state and the one before: nodes that landed
@@ -372,6 +376,7 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
   if (scene_.solver.method == Method::Bdf2 &&
       stepper_.contacts().alignWithSurfaces(h, x_, v_, x_prev_, v_prev_)) {
     measures_.kinetic = cloth_sim::kineticEnergy(model_, v_);
+    state_finite_ = false;  // v changed since measured
   }
   h_prev_ = h;
   has_prev_ = true;

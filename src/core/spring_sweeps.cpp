@@ -237,20 +237,32 @@ void forceSweepDispatch(const ForceSweepIn& in, const ForceSweepOut& out) {
   }
 }
 
+/// The direction's sum of (l - L)^2 and largest strain, with eight partial
+/// sums and maxima (a vectorised reduction in one pass with the lengths).
 CLOTH_SIM_VECTORISED
 void energyTerms(int slots, int offset, const double* __restrict x0, const double* __restrict x1,
                  const double* __restrict x2, const double* __restrict valid,
                  const double* __restrict rest, const double* __restrict inv_rest,
-                 double* __restrict sq, double* __restrict strain, double* __restrict length) {
-  for (int p = 0; p < slots; ++p) {
+                 double* __restrict length, double* sum_sq, double* max_strain) {
+  double sq[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+  double top[8] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL, -HUGE_VAL,
+                   -HUGE_VAL, -HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
+  auto slot = [&](int p, int k) __attribute__((always_inline)) {
     const double d0 = x0[p + offset] - x0[p], d1 = x1[p + offset] - x1[p],
                  d2 = x2[p + offset] - x2[p];
     const double l = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2);
     length[p] = l;
     const double m = valid[p], stretch = (l - rest[p]) * m, s = l * inv_rest[p] - 1.0;
-    sq[p] = stretch * stretch;
-    strain[p] = m > 0.0 ? s : -HUGE_VAL;
+    sq[k] += stretch * stretch;
+    top[k] = std::max(top[k], m > 0.0 ? s : -HUGE_VAL);
+  };
+  int p = 0;
+  for (; p + 8 <= slots; p += 8) {
+    for (int k = 0; k < 8; ++k) slot(p + k, k);
   }
+  for (; p < slots; ++p) slot(p, 0);
+  *sum_sq += ((sq[0] + sq[1]) + (sq[2] + sq[3])) + ((sq[4] + sq[5]) + (sq[6] + sq[7]));
+  for (double t : top) *max_strain = std::max(*max_strain, t);
 }
 
 }  // namespace
@@ -285,20 +297,13 @@ void forceSweep(const ForceSweepIn& in, const ForceSweepOut& out) { forceSweepDi
 void energySweep(int slots, int offset, const double* const x[3], const double* valid,
                  const double* rest_length, const double* inv_rest_length, double* sum_sq,
                  double* max_strain, double* length) {
-  thread_local std::vector<double> sq, strain, lengths;
-  sq.resize(std::max(slots, 0));
-  strain.resize(std::max(slots, 0));
+  thread_local std::vector<double> lengths;
   if (!length) {
     lengths.resize(std::max(slots, 0));
     length = lengths.data();
   }
-  energyTerms(slots, offset, x[0], x[1], x[2], valid, rest_length, inv_rest_length, sq.data(),
-              strain.data(), length);
-  // Eigen's reductions: vectorised, partial sums and maxima.
-  if (slots > 0) {
-    *sum_sq += Eigen::Map<const Eigen::ArrayXd>(sq.data(), slots).sum();
-    *max_strain = std::max(*max_strain, Eigen::Map<const Eigen::ArrayXd>(strain.data(), slots).maxCoeff());
-  }
+  energyTerms(slots, offset, x[0], x[1], x[2], valid, rest_length, inv_rest_length, length,
+              sum_sq, max_strain);
 }
 
 }  // namespace sweeps
