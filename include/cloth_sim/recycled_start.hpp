@@ -55,6 +55,7 @@ class RecycledStart {
   Small gram_;                    ///< B^T B by slot
   SmallVector projected_;         ///< B^T b of the last guess, by slot
   const double* guessed_ = nullptr;  ///< that b's data (record reuses projected_)
+  double b_squared_ = 0.0;           ///< that b's b . b
   SmallVector coefficients_;
   Small normal_;
   Eigen::LDLT<Small> ldlt_;

@@ -24,6 +24,11 @@ void joinComponents(const double* in, int n, double* out);
 class PaddedTerms {
  public:
   void reset(int n, int offset, int components = 3);
+  /// reset() unless already of this shape: the pads are zero still (nothing
+  /// writes them), the terms are left as they were.
+  void ensure(int n, int offset, int components = 3) {
+    if (n != n_ || offset != offset_ || components != components_ || !data_) reset(n, offset, components);
+  }
   double* term(int c) { return data_ + c * padded_ + offset_; }
   /// y_c[p] += t_c[p] - t_c[p - offset] for p < n (3 components): slot p's
   /// term on its lower end p, minus it on its upper end p + offset.
@@ -38,6 +43,12 @@ class PaddedTerms {
                              const PaddedTerms* b, double* y_split);
   /// y += a's and b's differences (b may be null).
   static void addPairDifferences(const PaddedTerms& a, const PaddedTerms* b, double* y_split);
+  /// y = (y, or 0 with `from_zero`) + terms[0]'s differences + terms[1]'s
+  /// + ..., added in that order (so the same as addDifferences of each in
+  /// turn) in one pass; 3 components, count up to kMaxDirections.
+  static void addDifferencesOfAll(const PaddedTerms* terms, int count, bool from_zero,
+                                  double* y_split);
+  static constexpr int kMaxDirections = 8;
 
  private:
   std::vector<double> buffer_;

@@ -193,6 +193,7 @@ class Stepper {
   SystemMatrix A_;
   CgWorkspace cg_;
   VecX f_, rhs_, dv_, dfdx_v_, g_, x_trial_, v_trial_, g_trial_, delta_, delta_first_, ax_, av_, pinned_dv_;
+  bool pinned_dv_dirty_ = true;  ///< pinned_dv_ holds a nonzero entry
   /// implicit_euler's warm start: its first passes' answers (without contact).
   RecycledStart recycled_;
   int recycled_iterations_ = 2;  ///< CG iterations of the last first pass

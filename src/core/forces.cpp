@@ -37,7 +37,7 @@ namespace {
 /// allocates nothing once sized.
 struct SweepBuffers {
   std::vector<double> x, v, w, held, f, kw;
-  sweeps::PaddedTerms f_terms, kw_terms;
+  std::vector<sweeps::PaddedTerms> f_terms, kw_terms;  ///< per direction
   // The slots' lengths measureEnergy took (direction d's from d n) at
   // `measured_x` of `measured_layout`, whose split is still in x while
   // `x_is_measured`: implicit_euler's next assembly is at that x (the energy
@@ -97,7 +97,8 @@ void springSweeps(const Model& model, const VecX& x, const VecX& v, double a, do
   // K w of the velocities themselves (implicit_euler's h K v0): no second split.
   const bool w_is_v = w == &v;
   if (w) {
-    buf.kw.assign(size, 0.0);
+    buf.kw.resize(size);
+    if (layout.directions.empty()) std::fill(buf.kw.begin(), buf.kw.end(), 0.0);
     if (!w_is_v) {
       buf.w.resize(size);
       sweeps::splitComponents(*w, buf.w.data());
@@ -114,6 +115,8 @@ void springSweeps(const Model& model, const VecX& x, const VecX& v, double a, do
     if (A) A->useDampingAxes();
   }
   bool single_written = A && !layout.directions.empty();
+  buf.f_terms.resize(layout.directions.size());
+  if (w) buf.kw_terms.resize(layout.directions.size());
   for (size_t d = 0; d < layout.directions.size(); ++d) {
     const SpringDirection& dir = layout.directions[d];
     const SpringGroup& g = model.groups[static_cast<int>(dir.type)];
@@ -137,11 +140,11 @@ void springSweeps(const Model& model, const VecX& x, const VecX& v, double a, do
     in.a = a;
     in.b = b;
     sweeps::ForceSweepOut out;
-    buf.f_terms.reset(n, dir.offset);
-    if (w) buf.kw_terms.reset(n, dir.offset);
+    buf.f_terms[d].ensure(n, dir.offset);
+    if (w) buf.kw_terms[d].ensure(n, dir.offset);
     for (int c = 0; c < 3; ++c) {
-      out.f[c] = buf.f_terms.term(c);
-      if (w) out.kw[c] = buf.kw_terms.term(c);
+      out.f[c] = buf.f_terms[d].term(c);
+      if (w) out.kw[c] = buf.kw_terms[d].term(c);
     }
     if (A) {
       SystemMatrix::Coefficients& co = A->coefficients(static_cast<int>(d));
@@ -162,9 +165,13 @@ void springSweeps(const Model& model, const VecX& x, const VecX& v, double a, do
       }
     }
     sweeps::forceSweep(in, out);
-    buf.f_terms.addDifferences(buf.f.data());
-    if (w) buf.kw_terms.addDifferences(buf.kw.data());
   }
+  // Every direction's terms into the node sums in one pass each (the
+  // external forces first, then the directions in turn, as one pass a
+  // direction added them).
+  const int count = static_cast<int>(layout.directions.size());
+  sweeps::PaddedTerms::addDifferencesOfAll(buf.f_terms.data(), count, false, buf.f.data());
+  if (w) sweeps::PaddedTerms::addDifferencesOfAll(buf.kw_terms.data(), count, true, buf.kw.data());
   if (single_written) A->singleWritten();
   sweeps::joinComponents(buf.f.data(), n, f.data());
   if (w) sweeps::joinComponents(buf.kw.data(), n, dfdx_w->data());

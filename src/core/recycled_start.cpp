@@ -36,9 +36,15 @@ bool RecycledStart::guess(const VecX& b, VecX* x) {
   // One pass over b for its products with the kept sides, one to combine
   // the answers (a pass each: 12 passes over the vectors were 8 % of the
   // seed's step).
+  // With b . b, for the Gram matrix's new entry when b is recorded.
   const double* v[cg_kernels::kMaxVectors];
+  double products[cg_kernels::kMaxVectors];
   for (int k = 0; k < count_; ++k) v[k] = rights_[k].data();
-  cg_kernels::dots(n, count_, v, b.data(), projected_.data());
+  const bool with_b = count_ < cg_kernels::kMaxVectors;
+  if (with_b) v[count_] = b.data();
+  cg_kernels::dots(n, count_ + (with_b ? 1 : 0), v, b.data(), products);
+  for (int k = 0; k < count_; ++k) projected_[k] = products[k];
+  b_squared_ = with_b ? products[count_] : cg_kernels::dot(n, b.data(), b.data());
   guessed_ = b.data();
   normal_ = gram_.topLeftCorner(count_, count_);
   normal_.diagonal().array() += kRidge * normal_.diagonal().maxCoeff();
@@ -64,8 +70,9 @@ void RecycledStart::record(const VecX& x, const VecX& b) {
   count_ = std::min(count_ + 1, capacity_);
   next_ = (next_ + 1) % capacity_;
   for (int k = 0; k < count_; ++k) {
-    const double d = k != slot && known ? projected_[k]
-                                        : cg_kernels::dot(n, rights_[k].data(), b.data());
+    const double d = !known     ? cg_kernels::dot(n, rights_[k].data(), b.data())
+                     : k == slot ? b_squared_
+                                 : projected_[k];
     gram_(slot, k) = gram_(k, slot) = d;
   }
 }

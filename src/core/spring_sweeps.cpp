@@ -87,6 +87,42 @@ void addSums(int n, int offset, const double* __restrict t, double* __restrict y
   for (int p = 0; p < n; ++p) y[p] += t[p + offset] + t[p];
 }
 
+/// addDifferencesOfAll for one component and kCount directions.
+template <int kCount>
+inline __attribute__((always_inline)) void differencesOfAll(int n, const double* const* t,
+                                                            const int* o, bool from_zero,
+                                                            double* __restrict y) {
+  if (from_zero) {
+    for (int p = 0; p < n; ++p) {
+      double s = 0.0;
+      for (int k = 0; k < kCount; ++k) s += t[k][p + o[k]] - t[k][p];
+      y[p] = s;
+    }
+  } else {
+    for (int p = 0; p < n; ++p) {
+      double s = y[p];
+      for (int k = 0; k < kCount; ++k) s += t[k][p + o[k]] - t[k][p];
+      y[p] = s;
+    }
+  }
+}
+
+CLOTH_SIM_VECTORISED
+void differencesOfAllDispatch(int n, int count, const double* const* t, const int* o,
+                              bool from_zero, double* y) {
+  switch (count) {
+    case 1: differencesOfAll<1>(n, t, o, from_zero, y); break;
+    case 2: differencesOfAll<2>(n, t, o, from_zero, y); break;
+    case 3: differencesOfAll<3>(n, t, o, from_zero, y); break;
+    case 4: differencesOfAll<4>(n, t, o, from_zero, y); break;
+    case 5: differencesOfAll<5>(n, t, o, from_zero, y); break;
+    case 6: differencesOfAll<6>(n, t, o, from_zero, y); break;
+    case 7: differencesOfAll<7>(n, t, o, from_zero, y); break;
+    case 8: differencesOfAll<8>(n, t, o, from_zero, y); break;
+    default: break;
+  }
+}
+
 /// forceSweep's loop for one combination of outputs and damping. kRegular:
 /// every spring taken as longer than kDegenerateLength (no rest directions
 /// loaded, no selects), returning false if one was not, to be swept again
@@ -269,6 +305,26 @@ void energyTerms(int slots, int offset, const double* __restrict x0, const doubl
 
 void PaddedTerms::addDifferences(double* y_split) const {
   sweeps::addDifferences(n_, offset_, padded_, data_, y_split);
+}
+
+void PaddedTerms::addDifferencesOfAll(const PaddedTerms* terms, int count, bool from_zero,
+                                      double* y_split) {
+  if (count > kMaxDirections) {  // in turns of kMaxDirections
+    addDifferencesOfAll(terms, kMaxDirections, from_zero, y_split);
+    addDifferencesOfAll(terms + kMaxDirections, count - kMaxDirections, false, y_split);
+    return;
+  }
+  if (count <= 0) return;
+  const int n = terms[0].n_;
+  const double* t[kMaxDirections];
+  int o[kMaxDirections];
+  for (int c = 0; c < 3; ++c) {
+    for (int k = 0; k < count; ++k) {
+      t[k] = terms[k].data_ + c * terms[k].padded_;
+      o[k] = terms[k].offset_;
+    }
+    differencesOfAllDispatch(n, count, t, o, from_zero, y_split + c * n);
+  }
 }
 
 void PaddedTerms::addSums(double* y_split) const {

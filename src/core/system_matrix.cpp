@@ -150,7 +150,7 @@ void SystemMatrix::multiplySplitDouble(const double* xs, double* ys) const {
     const Coefficients& d = coefficients_[k];
     const int o = layout_->directions[k].offset;
     sweeps::PaddedTerms& t = direction_terms_[k];
-    t.reset(n, o);
+    t.ensure(n, o);
     directionTerms(n - o, o, xs, xs + n, xs + 2 * n, d.iso.data(), d.axis.data(), d.u[0].data(),
                    d.u[1].data(), d.u[2].data(), held ? d.c.data() : nullptr,
                    held ? d.w[0].data() : nullptr, held ? d.w[1].data() : nullptr,
