@@ -85,6 +85,7 @@ struct CgWorkspace {
   /// CG's vectors, split by component (SystemMatrix::multiplySplit), and
   /// the unsplit ones a multigrid or Cholesky apply takes.
   VecX x, r, z, p, q, joined_r, joined_z;
+  std::vector<float> p_single;  ///< p rounded to float, where products may be float
   /// Block Jacobi's inverse node blocks, split by entry (xx, yy, zz, xy,
   /// xz, yz; zero for eliminated nodes).
   std::vector<double> inv_diag;

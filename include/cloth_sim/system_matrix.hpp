@@ -163,6 +163,9 @@ class SystemMatrix {
   /// y = A x with the springs' terms in float (node blocks, pair terms and
   /// vectors in double), whatever the tolerance: CG bounds its error itself.
   void multiplySplitFloat(const double* x, double* y) const;
+  /// The same, x's float copy given (CG keeps one beside its direction:
+  /// no conversion pass a product).
+  void multiplySplitFloat(const double* x, const float* x_single, double* y) const;
   /// Full diagonal block of node i including its springs' couplings (summed
   /// on first use after the couplings changed: only block Jacobi and Cholesky
   /// need them).
@@ -175,7 +178,8 @@ class SystemMatrix {
     psd_coupling_bound_ = INFINITY;
   }
   void multiplySplitDouble(const double* x, double* y) const;
-  void multiplySplitSingle(const double* x, double* y) const;  // system_matrix_single.cpp
+  void multiplySplitSingle(const double* x, double* y,
+                           const float* x_single) const;  // system_matrix_single.cpp
   void makeSingleCopies() const;
   void sizeSingleCopies() const;  ///< single_dirs_ for this layout (terms' pads zero)
   std::shared_ptr<const SpringLayout> layout_;

@@ -102,6 +102,21 @@ void updateDirection(int n, double beta, const double* __restrict z, double* __r
 }
 
 CLOTH_SIM_VECTORISED
+void updateDirectionWithSingle(int n, double beta, const double* __restrict z,
+                               double* __restrict p, float* __restrict p_single) {
+  for (int i = 0; i < n; ++i) {
+    const double pi = z[i] + beta * p[i];
+    p[i] = pi;
+    p_single[i] = static_cast<float>(pi);
+  }
+}
+
+CLOTH_SIM_VECTORISED
+void toSingle(int n, const double* __restrict x, float* __restrict out) {
+  for (int i = 0; i < n; ++i) out[i] = static_cast<float>(x[i]);
+}
+
+CLOTH_SIM_VECTORISED
 bool allFinite(int n, const double* __restrict x) {
   // x - x is 0 for a finite x and NaN otherwise; eight partial sums, as dot.
   double s[8] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};

@@ -385,10 +385,17 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
   int k = 0;
   double* ps = ws.p.data();
   double* qs = ws.q.data();
+  // Where float products may come, p's float copy is kept as p is updated
+  // (no conversion pass a product).
+  const bool relaxable = std::isfinite(eps);
+  if (relaxable) {
+    ws.p_single.resize(dim);
+    cg_kernels::toSingle(dim, ps, ws.p_single.data());
+  }
   while (r_norm + gap > target && k < budget) {
     const bool relaxed = gap + 2.0 * eps * r_norm <= 0.5 * target;
     if (relaxed) {
-      A.multiplySplitFloat(ps, qs);
+      A.multiplySplitFloat(ps, ws.p_single.data(), qs);
       ++result.float_products;
     } else {
       A.multiplySplit(ps, qs);
@@ -404,7 +411,11 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
     ++k;
     if (r_norm + gap <= target) break;
     const double rz_new = plain ? rr : applyPreconditioner(preconditioner, ws, filter, ws.r, z);
-    cg_kernels::updateDirection(dim, rz_new / rz, z.data(), ps);
+    if (relaxable) {
+      cg_kernels::updateDirectionWithSingle(dim, rz_new / rz, z.data(), ps, ws.p_single.data());
+    } else {
+      cg_kernels::updateDirection(dim, rz_new / rz, z.data(), ps);
+    }
     rz = rz_new;
   }
   sweeps::joinComponents(xs, n, x.data());

@@ -134,7 +134,12 @@ double SystemMatrix::relaxedSingleRounding() const {
 
 void SystemMatrix::multiplySplitFloat(const double* xs, double* ys) const {
   if (!single_valid_) makeSingleCopies();
-  multiplySplitSingle(xs, ys);
+  multiplySplitSingle(xs, ys, nullptr);
+}
+
+void SystemMatrix::multiplySplitFloat(const double* xs, const float* xf, double* ys) const {
+  if (!single_valid_) makeSingleCopies();
+  multiplySplitSingle(xs, ys, xf);
 }
 
 bool SystemMatrix::singlePrecisionFits(double tolerance) const {
@@ -148,7 +153,7 @@ void SystemMatrix::multiplySplit(const double* xs, double* ys) const {
   if (single_tolerance_ > 0.0 && ++single_products_ > 1 &&
       singlePrecisionFits(single_tolerance_)) {
     if (!single_valid_) makeSingleCopies();
-    multiplySplitSingle(xs, ys);
+    multiplySplitSingle(xs, ys, nullptr);
   } else {
     multiplySplitDouble(xs, ys);
   }
@@ -197,13 +202,16 @@ void SystemMatrix::makeSingleCopies() const {
   single_valid_ = true;
 }
 
-void SystemMatrix::multiplySplitSingle(const double* xs, double* ys) const {
+void SystemMatrix::multiplySplitSingle(const double* xs, double* ys, const float* xf) const {
   const int n = numNodes();
   single_used_ = true;
-  x_single_.resize(3 * static_cast<size_t>(n));
   sum_single_.resize(3 * static_cast<size_t>(n));
-  toSingle(3 * n, xs, x_single_.data());
-  const float* x = x_single_.data();
+  if (!xf) {
+    x_single_.resize(3 * static_cast<size_t>(n));
+    toSingle(3 * n, xs, x_single_.data());
+    xf = x_single_.data();
+  }
+  const float* x = xf;
   float* sum = sum_single_.data();
   const size_t count = single_dirs_.size();
   if (count == 0) {
