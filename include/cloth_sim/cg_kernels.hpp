@@ -23,8 +23,8 @@ double blockJacobi(int m, const double* const inv[6], const double* r, double* z
 void updateDirection(int n, double beta, const double* z, double* p);
 /// The same, and p's float copy into p_single (for a float product).
 void updateDirectionWithSingle(int n, double beta, const double* z, double* p, float* p_single);
-/// out = x rounded to float.
-void toSingle(int n, const double* x, float* out);
+/// p = z, and p's float copy into p_single.
+void copyWithSingle(int n, const double* z, double* p, float* p_single);
 /// Whether every entry is finite (the steppers' check of every step, too).
 bool allFinite(int n, const double* x);
 /// y = a x + b y (b = 0: y = a x, whatever y held).

@@ -3,6 +3,8 @@
 // gravity and drag are skipped when zero).
 #pragma once
 
+#include <limits>
+
 #include "cloth_sim/linear_solver.hpp"
 #include "cloth_sim/model.hpp"
 #include "cloth_sim/spring_forces.hpp"
@@ -32,6 +34,16 @@ void assembleSystem(const Model& model, const VecX& x, const VecX& v, double a, 
 void springAxes(const Model& model, const VecX& x, std::vector<Vec3>& axes);
 
 /// Energy parts and max strain of a state, in one pass over the springs.
+/// The node sums the round-off figures need (residualRoundOff,
+/// energyRoundOff), of a velocity av.
+struct RoundOffTerms {
+  double momentum_sq = 0.0;  ///< sum m^2 |av|^2 = |M av|^2
+  double mass_sq = 0.0;      ///< sum m^2
+  double kinetic2 = 0.0;     ///< sum m |av|^2 = |av|_M^2
+  double m_min = std::numeric_limits<double>::infinity();
+};
+RoundOffTerms roundOffTerms(const Model& model, const VecX& av);
+
 struct EnergyParts {
   double kinetic = 0.0;
   double elastic = 0.0;
@@ -41,6 +53,7 @@ struct EnergyParts {
   /// simulation adds it (Simulation::repulsionEnergy)
   double repulsion = 0.0;
   bool finite = true;  ///< x and v were finite (measureEnergy's)
+  RoundOffTerms round_off;  ///< of v (measureEnergy's)
   double total() const { return kinetic + elastic + potential + repulsion; }
 };
 EnergyParts measureEnergy(const Model& model, const VecX& x, const VecX& v);
@@ -63,6 +76,8 @@ double residualRoundOff(const Model& model, double bh, const VecX& av);
 /// 1e8: ~1e-17 J at rest, 4e-5 J moving at 11 J, dt 0.1); elsewhere it is
 /// far below the energy check's 1e-6 of the energy scale.
 double energyRoundOff(const Model& model, double bh, const VecX& av);
+/// The same from av's terms (measureEnergy keeps them: no second pass).
+double energyRoundOff(const Model& model, double bh, const RoundOffTerms& av_terms);
 /// Largest |d|/L - 1 over all springs (0 without springs).
 double maxStrain(const Model& model, const VecX& x);
 

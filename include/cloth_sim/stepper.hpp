@@ -194,6 +194,9 @@ class Stepper {
   CgWorkspace cg_;
   VecX f_, rhs_, dv_, dfdx_v_, g_, x_trial_, v_trial_, g_trial_, delta_, delta_first_, ax_, av_, pinned_dv_;
   bool pinned_dv_dirty_ = true;  ///< pinned_dv_ holds a nonzero entry
+  /// Whether x and v came out of the last runMethod finite, where it knows
+  /// (implicit_euler checks in its last pass over them).
+  bool finite_known_ = false, finite_ = true;
   /// implicit_euler's warm start: its first passes' answers (without contact).
   RecycledStart recycled_;
   int recycled_iterations_ = 2;  ///< CG iterations of the last first pass

@@ -112,8 +112,12 @@ void updateDirectionWithSingle(int n, double beta, const double* __restrict z,
 }
 
 CLOTH_SIM_VECTORISED
-void toSingle(int n, const double* __restrict x, float* __restrict out) {
-  for (int i = 0; i < n; ++i) out[i] = static_cast<float>(x[i]);
+void copyWithSingle(int n, const double* __restrict z, double* __restrict p,
+                    float* __restrict p_single) {
+  for (int i = 0; i < n; ++i) {
+    p[i] = z[i];
+    p_single[i] = static_cast<float>(z[i]);
+  }
 }
 
 CLOTH_SIM_VECTORISED

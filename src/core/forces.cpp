@@ -209,12 +209,43 @@ void assembleSystem(const Model& model, const VecX& x, const VecX& v, double a, 
 
 namespace {
 
+/// roundOffTerms' sum for node i into s.
+inline void addRoundOffTerms(const Model& model, const VecX& av, int i, RoundOffTerms& s) {
+  const double m = model.mass[i], v2 = av.segment<3>(3 * i).squaredNorm();
+  s.momentum_sq += m * m * v2;
+  s.mass_sq += m * m;
+  s.kinetic2 += m * v2;
+  s.m_min = std::min(s.m_min, m);
+}
+
+/// Two partial sums (even and odd nodes) joined.
+RoundOffTerms joinRoundOffTerms(RoundOffTerms t, const RoundOffTerms& u) {
+  t.momentum_sq += u.momentum_sq;
+  t.mass_sq += u.mass_sq;
+  t.kinetic2 += u.kinetic2;
+  t.m_min = std::min(t.m_min, u.m_min);
+  return t;
+}
+
+}  // namespace
+
+RoundOffTerms roundOffTerms(const Model& model, const VecX& av) {
+  // Even and odd nodes: two chains of dependent adds instead of one.
+  RoundOffTerms t, u;
+  const int n = model.numNodes();
+  for (int i = 0; i < n; ++i) addRoundOffTerms(model, av, i, i % 2 == 0 ? t : u);
+  return joinRoundOffTerms(t, u);
+}
+
+namespace {
+
 /// measureEnergy's one pass over the nodes: x split by component into
-/// `split` and copied into `copy`, the kinetic and gravity energies summed
-/// as kineticEnergy and gravityEnergy sum them (the same partial sums, in
-/// the same order: the same results), and whether x and v are finite.
+/// `split` and copied into `copy`, the kinetic and gravity energies and v's
+/// round-off terms summed as kineticEnergy, gravityEnergy and roundOffTerms
+/// sum them (the same partial sums, in the same order: the same results),
+/// and whether x and v are finite.
 void nodePass(const Model& model, const VecX& x, const VecX& v, double* split, double* copy,
-              double* kinetic, double* gravity, bool* finite) {
+              double* kinetic, double* gravity, RoundOffTerms* round_off, bool* finite) {
   const int n = model.numNodes();
   const double* m = model.mass.data();
   const double* w = v.data();
@@ -222,6 +253,7 @@ void nodePass(const Model& model, const VecX& x, const VecX& v, double* split, d
   const double g0 = model.gravity[0], g1 = model.gravity[1], g2 = model.gravity[2];
   double e[4] = {0.0, 0.0, 0.0, 0.0}, p[4] = {0.0, 0.0, 0.0, 0.0};
   double nan[4] = {0.0, 0.0, 0.0, 0.0};  // u - u: 0 where finite, NaN elsewhere
+  RoundOffTerms even, odd;
   int i = 0;
   for (; i + 4 <= n; i += 4) {
     for (int k = 0; k < 4; ++k) {
@@ -232,6 +264,7 @@ void nodePass(const Model& model, const VecX& x, const VecX& v, double* split, d
       p[k] += m[j] * (g0 * q[0] + g1 * q[1] + g2 * q[2]);
       nan[k] += ((u[0] - u[0]) + (u[1] - u[1])) + ((u[2] - u[2]) + (q[0] - q[0])) +
                 ((q[1] - q[1]) + (q[2] - q[2]));
+      addRoundOffTerms(model, v, j, k % 2 == 0 ? even : odd);
     }
   }
   for (int j = i; j < n; ++j) {
@@ -241,7 +274,9 @@ void nodePass(const Model& model, const VecX& x, const VecX& v, double* split, d
   for (; i < n; ++i) {
     e[0] += m[i] * v.segment<3>(3 * i).squaredNorm();
     p[0] += m[i] * model.gravity.dot(x.segment<3>(3 * i));
+    addRoundOffTerms(model, v, i, i % 2 == 0 ? even : odd);
   }
+  *round_off = joinRoundOffTerms(even, odd);
   for (int j = 0; j < n; ++j) {
     split[j] = y[3 * j];
     split[n + j] = y[3 * j + 1];
@@ -262,7 +297,7 @@ EnergyParts measureEnergy(const Model& model, const VecX& x, const VecX& v) {
   buf.x.resize(3 * static_cast<size_t>(n));
   buf.measured_x.resize(x.size());
   nodePass(model, x, v, buf.x.data(), buf.measured_x.data(), &e.kinetic, &e.potential,
-           &e.finite);
+           &e.round_off, &e.finite);
   buf.lengths.resize(layout.directions.size() * static_cast<size_t>(n));
   const double* split[3] = {buf.x.data(), buf.x.data() + n, buf.x.data() + 2 * n};
   double sum[kNumSpringTypes] = {};  // of (l - L)^2, per group
@@ -340,35 +375,6 @@ double springForceScale(const Model& model) {
 
 namespace {
 
-/// The node sums both round-off figures need, in one pass over the nodes.
-struct RoundOffTerms {
-  double momentum_sq = 0.0;  ///< sum m^2 |av|^2 = |M av|^2
-  double mass_sq = 0.0;      ///< sum m^2
-  double kinetic2 = 0.0;     ///< sum m |av|^2 = |av|_M^2
-  double m_min = std::numeric_limits<double>::infinity();
-};
-
-RoundOffTerms roundOffTerms(const Model& model, const VecX& av) {
-  // Two nodes at a time: two chains of dependent adds instead of one.
-  RoundOffTerms t, u;
-  const int n = model.numNodes();
-  auto add = [&](RoundOffTerms& s, int i) {
-    const double m = model.mass[i], v2 = av.segment<3>(3 * i).squaredNorm();
-    s.momentum_sq += m * m * v2;
-    s.mass_sq += m * m;
-    s.kinetic2 += m * v2;
-    s.m_min = std::min(s.m_min, m);
-  };
-  int i = 0;
-  for (; i + 2 <= n; i += 2) add(t, i), add(u, i + 1);
-  if (i < n) add(t, i);
-  t.momentum_sq += u.momentum_sq;
-  t.mass_sq += u.mass_sq;
-  t.kinetic2 += u.kinetic2;
-  t.m_min = std::min(t.m_min, u.m_min);
-  return t;
-}
-
 double residualRoundOff(const Model& model, double bh, const RoundOffTerms& t) {
   return 100.0 * std::numeric_limits<double>::epsilon() *
          (std::sqrt(t.momentum_sq) +
@@ -382,7 +388,10 @@ double residualRoundOff(const Model& model, double bh, const VecX& av) {
 }
 
 double energyRoundOff(const Model& model, double bh, const VecX& av) {
-  const RoundOffTerms t = roundOffTerms(model, av);
+  return energyRoundOff(model, bh, roundOffTerms(model, av));
+}
+
+double energyRoundOff(const Model& model, double bh, const RoundOffTerms& t) {
   if (!(t.m_min > 0.0) || !std::isfinite(t.m_min)) return 0.0;  // no nodes, or massless
   const double r = residualRoundOff(model, bh, t);
   return std::sqrt(t.kinetic2 / t.m_min) * r + 0.5 * r * r / t.m_min;

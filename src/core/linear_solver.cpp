@@ -360,7 +360,6 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
   const bool plain = preconditioner == Preconditioner::None;
   VecX& z = plain ? ws.r : ws.z;
   double rz = plain ? r_norm * r_norm : applyPreconditioner(preconditioner, ws, filter, ws.r, z);
-  ws.p = z;
   // A preconditioner kept from an earlier matrix (a reused Cholesky factor,
   // multigrid coarse levels) either still solves in a few iterations or is
   // stale (e.g. Newton iterates on stiff rotating springs): then it gets only
@@ -390,7 +389,9 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
   const bool relaxable = std::isfinite(eps);
   if (relaxable) {
     ws.p_single.resize(dim);
-    cg_kernels::toSingle(dim, ps, ws.p_single.data());
+    cg_kernels::copyWithSingle(dim, z.data(), ps, ws.p_single.data());  // p = z
+  } else {
+    ws.p = z;
   }
   while (r_norm + gap > target && k < budget) {
     const bool relaxed = gap + 2.0 * eps * r_norm <= 0.5 * target;

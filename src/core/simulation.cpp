@@ -355,7 +355,7 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
     // A cloth at rest has a tiny scale, and with stiff springs its energy
     // is then at the step's round-off (stretch 1e8: ~1e-17 J, rising and
     // falling by as much): gains below that are not gains.
-    stats.energy_round_off = energyRoundOff(model_, h, v_save_);
+    stats.energy_round_off = energyRoundOff(model_, h, before.round_off);  // of v_save_
     if (scene_.solver.recovery && !(gain <= allowance * scale + stats.energy_round_off)) {
       stats.ok = false;
       stats.failure = "energy jump of " + fmt(gain) + " J beyond the work input";
@@ -376,6 +376,7 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
   if (scene_.solver.method == Method::Bdf2 &&
       stepper_.contacts().alignWithSurfaces(h, x_, v_, x_prev_, v_prev_)) {
     measures_.kinetic = cloth_sim::kineticEnergy(model_, v_);
+    measures_.round_off = roundOffTerms(model_, v_);
     state_finite_ = false;  // v changed since measured
   }
   h_prev_ = h;

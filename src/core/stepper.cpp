@@ -1,6 +1,7 @@
 #include "cloth_sim/stepper.hpp"
 
 #include <chrono>
+#include <limits>
 #include <cmath>
 #include <algorithm>
 
@@ -17,15 +18,20 @@ double secondsSince(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 /// v += dv, then x += h v, in one pass (the baseline build: no multiply-add,
-/// as the two vector expressions it replaced rounded).
-void advance(double h, const VecX& dv, VecX& v, VecX& x) {
+/// as the two vector expressions it replaced rounded); whether both came out
+/// finite (an AND of compares: no chain of dependent adds).
+bool advance(double h, const VecX& dv, VecX& v, VecX& x) {
   const double* d = dv.data();
   double* w = v.data();
   double* y = x.data();
+  constexpr double kMax = std::numeric_limits<double>::max();
+  int finite = 1;
   for (Eigen::Index i = 0; i < v.size(); ++i) {
     w[i] += d[i];
     y[i] += h * w[i];
+    finite &= static_cast<int>(std::fabs(w[i]) <= kMax) & static_cast<int>(std::fabs(y[i]) <= kMax);
   }
+  return finite != 0;
 }
 bool hasSpringDamping(const Model& model) {
   for (const SpringGroup& g : model.groups) {
@@ -164,7 +170,9 @@ StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
       stats.contact_work = contact_.work(x0_, x, reaction_, bh_);
     }
   }
-  stats.finite = allFinite(x) && allFinite(v);
+  // implicit_euler's last pass over x and v checked them (finite_known_);
+  // contact passes may move them after.
+  stats.finite = finite_known_ && !contact_on_ ? finite_ : allFinite(x) && allFinite(v);
   if (!stats.finite) {
     stats.ok = false;
     stats.failure = "non-finite position or velocity";
@@ -176,6 +184,7 @@ StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
 StepStats Stepper::runMethod(const Model& model, double h, const History& history, VecX& x,
                              VecX& v, Method method) {
   StepStats stats;
+  finite_known_ = method == Method::ImplicitEuler;  // its advance() checks
   axes_held_ = false;  // newtonSolve holds them where it should
   linearized_ = false;  // implicitEuler sets it where its reaction is A dv - rhs
   switch (method) {
@@ -307,7 +316,7 @@ StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v)
   stats.newton_iterations = 1;
 
   if (pins_move) dv_ += pinned_dv_;  // else it is zero
-  advance(h, dv_, v, x);
+  finite_ = advance(h, dv_, v, x);  // placePins puts pins on their (finite) targets
   if (react) {  // reaction = A dv - rhs0: what the constraints supplied, times h
     A_.multiplyAll(dv_, g_);
     reaction_ = g_ - rhs0_;
