@@ -23,11 +23,12 @@ void computeForces(const Model& model, const VecX& x, const VecX& v, VecX& f,
 /// Fills A = M - a df/dv - b df/dx (pinned rows are handled by the solver),
 /// and in the same spring sweep f(x, v) and, if w is given, df/dx * w.
 /// `damping_axes` as in computeForces: A's damping is then a c w w^T, exact
-/// (the force is linear in v and does not depend on x).
+/// (the force is linear in v and does not depend on x). With `split_out`,
+/// f and df/dx * w come split by component (f[c n + i], CG's layout).
 void assembleSystem(const Model& model, const VecX& x, const VecX& v, double a, double b,
                     bool project_compression, SystemMatrix& A, VecX& f,
                     const VecX* w = nullptr, VecX* dfdx_w = nullptr,
-                    const std::vector<Vec3>* damping_axes = nullptr);
+                    const std::vector<Vec3>* damping_axes = nullptr, bool split_out = false);
 
 /// Each spring's current unit axis (d / |d|, or its rest direction when
 /// degenerate) at positions x, into axes (one per spring).

@@ -215,9 +215,11 @@ class AutoPreconditioner {
 /// answer, filtered on entry (eliminated entries zero). Stops when
 /// ||r|| <= tolerance * ||S b|| or after max_iterations. The preconditioner
 /// is built on the filter's free mask and its output filtered: S B S.
+/// With `split`, b and x come (and x goes) split by component, CG's own
+/// layout (SystemMatrix::multiplySplit): no split or join passes.
 CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& springs,
                            const ConstraintFilter& filter, const VecX& b, VecX& x,
                            Preconditioner preconditioner, double tolerance,
-                           int max_iterations, CgWorkspace& ws);
+                           int max_iterations, CgWorkspace& ws, bool split = false);
 
 }  // namespace cloth_sim

@@ -57,8 +57,8 @@ class RecycledStart {
   const double* guessed_ = nullptr;  ///< that b's data (record reuses projected_)
   double b_squared_ = 0.0;           ///< that b's b . b
   SmallVector coefficients_;
-  Small normal_;
-  Eigen::LDLT<Small> ldlt_;
+  /// coefficients_ from the kept Gram matrix and projected_ (false: singular).
+  bool solveNormalEquations();
 };
 
 }  // namespace cloth_sim

@@ -124,6 +124,13 @@ class Stepper {
   StepStats runMethod(const Model& model, double h, const History& history, VecX& x, VecX& v,
                       Method method);
   StepStats implicitEuler(const Model& model, double h, VecX& x, VecX& v);
+  /// Whether implicitEuler's step may run split (implicitEulerSplit): no
+  /// contact, no self-repulsion terms, no projected pins, every pin held
+  /// where it is.
+  bool splitStepApplies(double h, const VecX& x, const VecX& v) const;
+  StepStats implicitEulerSplit(const Model& model, double h, VecX& x, VecX& v);
+  VecX f_split_, kv_split_, rhs_split_, dv_split_;  ///< its vectors, split by component
+  bool recycled_split_ = false;  ///< recycled_ holds split vectors
   /// Whether pin k is directional and its node has a collider contact: the
   /// contact's constraint (its projector and prescribed velocity) then wins,
   /// as the filter's projector already does (ConstraintFilter::project).
@@ -168,9 +175,11 @@ class Stepper {
                 const VecX* w, VecX* dfdx_w, const std::vector<Vec3>* damping_axes,
                 bool linearized);
   void setPins(const Model& model, const PinnedEnds& pins);
-  /// CG on A_ x = b (x: warm start and answer) with the scene's solver settings.
-  /// CG on A x = b to `tolerance` (relative; 0: solver.tolerance).
-  CgResult solveLinear(const Model& model, const VecX& b, VecX& x, double tolerance = 0.0);
+  /// CG on A_ x = b (x: warm start and answer) with the scene's solver
+  /// settings, to `tolerance` (relative; 0: solver.tolerance); with `split`,
+  /// b and x split by component (conjugateGradient).
+  CgResult solveLinear(const Model& model, const VecX& b, VecX& x, double tolerance = 0.0,
+                       bool split = false);
   /// g = M (v1 - av) - beta h f(ax + beta h v1, v1) on free nodes; returns ||g||.
   double residual(const Model& model, double bh, const VecX& ax, const VecX& av,
                   const VecX& v1, VecX& x1, VecX& g);

@@ -36,7 +36,8 @@ namespace {
 /// padded per-slot terms, the sums by component), kept per thread so a step
 /// allocates nothing once sized.
 struct SweepBuffers {
-  std::vector<double> x, v, w, held, f, kw;
+  std::vector<double> x, v, w, held;
+  VecX f, kw;  ///< swapped out whole where the caller takes them split
   std::vector<sweeps::PaddedTerms> f_terms, kw_terms;  ///< per direction
   // The slots' lengths measureEnergy took (direction d's from d n) at
   // `measured_x` of `measured_layout`, whose split is still in x while
@@ -70,10 +71,11 @@ void externalForcesSplit(const Model& model, const double* v, double* f) {
 }
 
 /// f(x, v) = the external forces plus the springs' over their directions;
-/// with A, A's couplings b K + a D too; with w, K w into dfdx_w.
+/// with A, A's couplings b K + a D too; with w, K w into dfdx_w. With
+/// `split_out`, f and dfdx_w come out split by component.
 void springSweeps(const Model& model, const VecX& x, const VecX& v, double a, double b,
                   bool project_compression, SystemMatrix* A, VecX& f, const VecX* w,
-                  VecX* dfdx_w, const std::vector<Vec3>* damping_axes) {
+                  VecX* dfdx_w, const std::vector<Vec3>* damping_axes, bool split_out = false) {
   const SpringLayout& layout = *model.layout;
   const int n = layout.num_nodes;
   const size_t size = 3 * static_cast<size_t>(n);
@@ -98,7 +100,7 @@ void springSweeps(const Model& model, const VecX& x, const VecX& v, double a, do
   const bool w_is_v = w == &v;
   if (w) {
     buf.kw.resize(size);
-    if (layout.directions.empty()) std::fill(buf.kw.begin(), buf.kw.end(), 0.0);
+    if (layout.directions.empty()) buf.kw.setZero();
     if (!w_is_v) {
       buf.w.resize(size);
       sweeps::splitComponents(*w, buf.w.data());
@@ -173,6 +175,11 @@ void springSweeps(const Model& model, const VecX& x, const VecX& v, double a, do
   sweeps::PaddedTerms::addDifferencesOfAll(buf.f_terms.data(), count, false, buf.f.data());
   if (w) sweeps::PaddedTerms::addDifferencesOfAll(buf.kw_terms.data(), count, true, buf.kw.data());
   if (single_written) A->singleWritten();
+  if (split_out) {  // the caller works on split vectors: no join
+    f.swap(buf.f);
+    if (w) dfdx_w->swap(buf.kw);
+    return;
+  }
   sweeps::joinComponents(buf.f.data(), n, f.data());
   if (w) sweeps::joinComponents(buf.kw.data(), n, dfdx_w->data());
 }
@@ -186,12 +193,12 @@ void computeForces(const Model& model, const VecX& x, const VecX& v, VecX& f,
 
 void assembleSystem(const Model& model, const VecX& x, const VecX& v, double a, double b,
                     bool project_compression, SystemMatrix& A, VecX& f, const VecX* w,
-                    VecX* dfdx_w, const std::vector<Vec3>* damping_axes) {
+                    VecX* dfdx_w, const std::vector<Vec3>* damping_axes, bool split_out) {
   A.resize(model.layout);
   A.reset(model.mass, a * model.air_drag);
   if (dfdx_w) dfdx_w->resize(x.size());
   springSweeps(model, x, v, a, b, project_compression, &A, f, dfdx_w ? w : nullptr, dfdx_w,
-               damping_axes);
+               damping_axes, split_out);
   if (project_compression && a >= 0.0 && b >= 0.0) {
     // Projected, a slot's block is b k ((1 - t) u u^T + t I) with t in [0, 1]
     // plus a c on I, an axis or a held axis: PSD, |iso| + |axis| + |c| =

@@ -269,14 +269,20 @@ Preconditioner AutoPreconditioner::escalate(const Model& model) {
 CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& springs,
                            const ConstraintFilter& filter, const VecX& b, VecX& x,
                            Preconditioner preconditioner, double tolerance,
-                           int max_iterations, CgWorkspace& ws) {
+                           int max_iterations, CgWorkspace& ws, bool split) {
   const int n = A.numNodes();
   const int dim = 3 * n;
   const std::vector<char>& free = filter.freeMask();
-  filter.apply(x);
+  if (split) {
+    filter.applySplit(x.data());
+  } else {
+    filter.apply(x);
+  }
   A.allowSinglePrecision(tolerance);
 
   // The iteration runs on vectors split by component (the product's layout).
+  // A split x is worked on in place (swapped in, swapped back at the end).
+  if (split) ws.x.swap(x);
   ws.x.resize(dim);
   ws.r.resize(dim);
   ws.z.resize(dim);
@@ -284,14 +290,29 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
   ws.q.resize(dim);
   double* xs = ws.x.data();
   double* rs = ws.r.data();
-  sweeps::splitComponents(b, rs);
-  filter.applySplit(rs);  // S b: also the residual of a cold start
+  auto splitB = [&] {
+    if (split) {
+      ws.r = b;
+    } else {
+      sweeps::splitComponents(b, rs);
+    }
+    filter.applySplit(rs);  // S b: also the residual of a cold start
+  };
+  auto giveX = [&] {  // the answer into x, in its layout
+    if (split) {
+      x.swap(ws.x);
+    } else {
+      sweeps::joinComponents(xs, n, x.data());
+    }
+  };
+  splitB();
 
   CgResult result;
   bool fresh_factor = false;
   bool rerouted = false;  ///< a fresh factor of the rerouted matrix (CholeskyFactor)
   const double b_norm = std::sqrt(cg_kernels::dot(dim, rs, rs));
   if (!(b_norm > 0.0)) {
+    if (split) x.swap(ws.x);
     x.setZero();
     result.converged = std::isfinite(b_norm);
     result.relative_residual = result.converged ? 0.0 : b_norm;
@@ -324,6 +345,7 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
         ws.plain_factors = 64;
       }
       if (!rerouted && !ws.cholesky->factorize(A, springs, filter, 0)) {
+        if (split) x.swap(ws.x);
         result.relative_residual = 1.0;
         return result;  // not positive definite: the caller's recovery decides
       }
@@ -332,17 +354,18 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
     if (!ws.multigrid) ws.multigrid = std::make_shared<MultigridPreconditioner>();
     if (!ws.multigrid->prepare(A, springs, free, ws.grid_rows, ws.grid_cols,
                                ws.multigrid_max_solves)) {
+      if (split) x.swap(ws.x);
       result.relative_residual = 1.0;
       return result;  // a singular block or coarse matrix: the caller's recovery decides
     }
     ws.multigrid->constrain(filter);
   }
 
-  const bool cold = x.isZero(0.0);  // Newton's steppers: no product needed
+  const bool cold = split ? ws.x.isZero(0.0) : x.isZero(0.0);  // no product needed
   if (cold) {
     ws.x.setZero();
   } else {
-    sweeps::splitComponents(x, xs);
+    if (!split) sweeps::splitComponents(x, xs);
     A.multiplySplit(xs, ws.q.data());
     filter.applySplit(ws.q.data());
   }
@@ -351,8 +374,7 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
   // A warm start worse than zero is dropped.
   if (!cold && !(r_norm <= b_norm)) {
     ws.x.setZero();
-    sweeps::splitComponents(b, rs);
-    filter.applySplit(rs);
+    splitB();
     r_norm = b_norm;
   }
   const double target = tolerance * b_norm;
@@ -419,7 +441,7 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
     }
     rz = rz_new;
   }
-  sweeps::joinComponents(xs, n, x.data());
+  giveX();
   if ((reused_factor || reused_multigrid) && r_norm + gap > target && k < max_iterations) {
     // Too stale for this matrix: rebuild from it and go on from x.
     if (reused_factor) {
@@ -430,7 +452,7 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
     }
     if (reused_multigrid) ws.multigrid->invalidate();
     CgResult more = conjugateGradient(A, springs, filter, b, x, preconditioner, tolerance,
-                                      max_iterations - k, ws);
+                                      max_iterations - k, ws, split);
     more.iterations += k;
     more.float_products += result.float_products;
     return more;

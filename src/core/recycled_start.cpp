@@ -1,6 +1,7 @@
 #include "cloth_sim/recycled_start.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 #include "cloth_sim/cg_kernels.hpp"
 
@@ -46,15 +47,46 @@ bool RecycledStart::guess(const VecX& b, VecX* x) {
   for (int k = 0; k < count_; ++k) projected_[k] = products[k];
   b_squared_ = with_b ? products[count_] : cg_kernels::dot(n, b.data(), b.data());
   guessed_ = b.data();
-  normal_ = gram_.topLeftCorner(count_, count_);
-  normal_.diagonal().array() += kRidge * normal_.diagonal().maxCoeff();
-  ldlt_.compute(normal_);
-  coefficients_ = ldlt_.solve(projected_.head(count_));
-  if (!coefficients_.allFinite()) return false;
+  if (!solveNormalEquations()) return false;
   x->resize(n);
   for (int k = 0; k < count_; ++k) v[k] = answers_[k].data();
   cg_kernels::combine(n, count_, v, coefficients_.data(), x->data());
   return true;
+}
+
+bool RecycledStart::solveNormalEquations() {
+  // (B^T B + ridge) c = B^T b by Cholesky, written out: at most 8 x 8, where
+  // a general factorization's set-up cost more than the solve (5 % of the
+  // seed's step).
+  const int m = count_;
+  double max_diagonal = 0.0;
+  for (int j = 0; j < m; ++j) max_diagonal = std::max(max_diagonal, gram_(j, j));
+  const double ridge = kRidge * max_diagonal;
+  double l[kMaxCapacity][kMaxCapacity];
+  double y[kMaxCapacity];
+  for (int j = 0; j < m; ++j) {
+    double d = gram_(j, j) + ridge;
+    for (int k = 0; k < j; ++k) d -= l[j][k] * l[j][k];
+    if (!(d > 0.0)) return false;  // singular to round-off despite the ridge (or NaN)
+    l[j][j] = std::sqrt(d);
+    for (int i = j + 1; i < m; ++i) {
+      double e = gram_(i, j);
+      for (int k = 0; k < j; ++k) e -= l[i][k] * l[j][k];
+      l[i][j] = e / l[j][j];
+    }
+  }
+  for (int i = 0; i < m; ++i) {  // L y = B^T b
+    double e = projected_[i];
+    for (int k = 0; k < i; ++k) e -= l[i][k] * y[k];
+    y[i] = e / l[i][i];
+  }
+  coefficients_.resize(m);
+  for (int i = m - 1; i >= 0; --i) {  // L^T c = y
+    double e = y[i];
+    for (int k = i + 1; k < m; ++k) e -= l[k][i] * coefficients_[k];
+    coefficients_[i] = e / l[i][i];
+  }
+  return coefficients_.allFinite();
 }
 
 void RecycledStart::record(const VecX& x, const VecX& b) {

@@ -6,33 +6,14 @@
 #include <algorithm>
 
 #include "cloth_sim/forces.hpp"
+#include "step_clock.hpp"
 
 namespace cloth_sim {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
 /// The loosest relative CG tolerance of a Newton iteration (inexact Newton).
 constexpr double kMaxForcing = 0.1;
-double secondsSince(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
-/// v += dv, then x += h v, in one pass (the baseline build: no multiply-add,
-/// as the two vector expressions it replaced rounded); whether both came out
-/// finite (an AND of compares: no chain of dependent adds).
-bool advance(double h, const VecX& dv, VecX& v, VecX& x) {
-  const double* d = dv.data();
-  double* w = v.data();
-  double* y = x.data();
-  constexpr double kMax = std::numeric_limits<double>::max();
-  int finite = 1;
-  for (Eigen::Index i = 0; i < v.size(); ++i) {
-    w[i] += d[i];
-    y[i] += h * w[i];
-    finite &= static_cast<int>(std::fabs(w[i]) <= kMax) & static_cast<int>(std::fabs(y[i]) <= kMax);
-  }
-  return finite != 0;
-}
 bool hasSpringDamping(const Model& model) {
   for (const SpringGroup& g : model.groups) {
     if (g.damping != 0.0 && g.end > g.begin) return true;
@@ -62,7 +43,8 @@ void Stepper::assemble(const Model& model, const VecX& x, const VecX& v, double 
   if (repulsion_) repulsion_->addToSystem(x, v, a, b, linearized, A_, f_, w, dfdx_w);
 }
 
-CgResult Stepper::solveLinear(const Model& model, const VecX& b, VecX& x, double tolerance) {
+CgResult Stepper::solveLinear(const Model& model, const VecX& b, VecX& x, double tolerance,
+                              bool split) {
   if (!(tolerance > 0.0)) tolerance = settings_.tolerance;
   const bool trial = settings_.preconditioner == Preconditioner::Auto &&
                      preconditioner_ != strongerPreconditioner(model);
@@ -70,14 +52,14 @@ CgResult Stepper::solveLinear(const Model& model, const VecX& b, VecX& x, double
                                    autoTrialIterations(model, preconditioner_))
                         : settings_.max_iterations;
   CgResult cg = conjugateGradient(A_, model.springs, filter_, b, x, preconditioner_,
-                                  tolerance, cap, cg_);
+                                  tolerance, cap, cg_, split);
   if (!trial || cg.converged) return cg;
   // `auto` guessed the cheap preconditioner and it does not pay: on from
   // where it got to.
   preconditioner_ = auto_.escalate(model);
   const int spent = cg.iterations;
   cg = conjugateGradient(A_, model.springs, filter_, b, x, preconditioner_, tolerance,
-                         settings_.max_iterations, cg_);
+                         settings_.max_iterations, cg_, split);
   cg.iterations += spent;
   return cg;
 }
@@ -249,87 +231,6 @@ StepStats Stepper::bdf2(const Model& model, double h, const History& history, Ve
   return newtonSolve(model, h, 0.5, ax_, av_, max_it, x, v);
 }
 
-StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v) {
-  StepStats stats;
-  const int n = model.numNodes();
-  auto t0 = Clock::now();
-  assemble(model, x, v, h, h * h, &v, &dfdx_v_, nullptr, true);
-  rhs_ = h * (f_ + h * dfdx_v_);
-  // Pinned velocity changes are prescribed: move their columns to the right side.
-  // Nonzero only where the last step prescribed a change (pins_move).
-  if (pinned_dv_dirty_ || pinned_dv_.size() != 3 * n) pinned_dv_.setZero(3 * n);
-  bool pins_move = false;
-  // Without friction or prescribed columns: the constraints' reaction (the
-  // contacts', the held nodes', the moving pins') is measured against it.
-  bool pins_drive = false;  // a pin moves in this step: its work is read off the reaction
-  for (size_t k = 0; k < pins_->nodes.size() && !pins_drive && pins_->reaction_read; ++k) {
-    pins_drive = pins_->targets[k] != Vec3(x.segment<3>(3 * pins_->nodes[k]));
-  }
-  const bool react = contact_on_ || !pins_->directions.empty() || pins_drive;
-  if (react) rhs0_ = rhs_;
-  if (contact_on_) {
-    pins_move = contact_.prescribeChange(x, h, v, pinned_dv_);
-    contact_.setFrictionSolve(ContactSet::FrictionSolve::Linearized);
-    contact_.addFriction(rhs_, h, v);  // at v0; its turn term in A acts on dv
-    contact_.addFrictionJacobian(A_, h, v);
-  }
-  for (size_t k = 0; k < pins_->nodes.size(); ++k) {
-    if (yieldsToContact(k)) continue;
-    const int p = pins_->nodes[k];
-    Vec3 dv = (pins_->targets[k] - x.segment<3>(3 * p)) / h - v.segment<3>(3 * p);
-    const Vec3 n = pins_->direction(k);
-    if (n.squaredNorm() > 0.0) dv = n * n.dot(dv);  // the rest is solved for
-    pinned_dv_.segment<3>(3 * p) = dv;
-    pins_move = pins_move || dv.squaredNorm() > 0.0;
-  }
-  pinned_dv_dirty_ = pins_move;  // else every entry written is zero
-  if (pins_move) {
-    A_.multiplyAll(pinned_dv_, g_);
-    rhs_ -= g_;
-  }
-  filter_.apply(rhs_);
-  stats.assembly_s = secondsSince(t0);
-
-  t0 = Clock::now();
-  if (dv_.size() != 3 * n) dv_.setZero(3 * n);
-  if (first_pass_) {
-    // Warm start from the last answers at this step size (recycled_start.hpp),
-    // else from the last step's dv. Not where the last solve took less than
-    // two CG iterations: its guess (its dot products) then costs more than
-    // it saves (the seed at its own CG 1e-2: 0.5 iterations a step either
-    // way). Not with contact: another start within the tolerance took the
-    // contact hard case c4 (a cloth stiffened on a table, stretch 1e7, dt
-    // 0.1) from 11 rejected sub-steps to a failure on energy after 8
-    // halvings. Later contact passes start from the last pass.
-    recycled_.useFor(h);
-    if (recycled_iterations_ >= 2 && !contact_on_) recycled_.guess(rhs_, &dv_);
-  }
-  const CgResult cg = solveLinear(model, rhs_, dv_);
-  if (first_pass_ && !contact_on_) {  // kept only where a guess uses it
-    recycled_.record(dv_, rhs_);
-    recycled_iterations_ = cg.iterations;
-  }
-  stats.solve_s = secondsSince(t0);
-  stats.cg_iterations = cg.iterations;
-  stats.residual = cg.relative_residual;
-  stats.linear_converged = cg.converged;
-  stats.newton_iterations = 1;
-
-  if (pins_move) dv_ += pinned_dv_;  // else it is zero
-  finite_ = advance(h, dv_, v, x);  // placePins puts pins on their (finite) targets
-  if (react) {  // reaction = A dv - rhs0: what the constraints supplied, times h
-    A_.multiplyAll(dv_, g_);
-    reaction_ = g_ - rhs0_;
-    for (const auto& [node, block] : A_.nodeBlocks()) {  // friction is not a reaction
-      reaction_.segment<3>(3 * node) -= block * Vec3(dv_.segment<3>(3 * node));
-    }
-    bh_ = h;
-  }
-  linearized_ = react;
-  if (pins_move) dv_ -= pinned_dv_;  // the free part warm-starts the next solve
-  placePins(x);
-  return stats;
-}
 
 double Stepper::residual(const Model& model, double bh, const VecX& ax, const VecX& av,
                          const VecX& v1, VecX& x1, VecX& g) {

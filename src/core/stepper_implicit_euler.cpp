@@ -1,0 +1,186 @@
+// Stepper::implicitEuler: one linearized backward-Euler step, Baraff &
+// Witkin's (M - h df/dv - h^2 df/dx) dv = h (f0 + h df/dx v0), with pins,
+// contact passes and self-repulsion; and its common case (none of those
+// moving or projecting anything) kept split by component from the assembly
+// to the update, CG's own layout.
+#include <cmath>
+#include <limits>
+
+#include "cloth_sim/forces.hpp"
+#include "cloth_sim/stepper.hpp"
+#include "step_clock.hpp"
+
+namespace cloth_sim {
+
+namespace {
+
+/// v += dv, then x += h v, in one pass (the baseline build: no multiply-add,
+/// as the two vector expressions it replaced rounded); whether both came out
+/// finite (an AND of compares: no chain of dependent adds).
+bool advance(double h, const VecX& dv, VecX& v, VecX& x) {
+  const double* d = dv.data();
+  double* w = v.data();
+  double* y = x.data();
+  constexpr double kMax = std::numeric_limits<double>::max();
+  int finite = 1;
+  for (Eigen::Index i = 0; i < v.size(); ++i) {
+    w[i] += d[i];
+    y[i] += h * w[i];
+    finite &= static_cast<int>(std::fabs(w[i]) <= kMax) & static_cast<int>(std::fabs(y[i]) <= kMax);
+  }
+  return finite != 0;
+}
+/// advance() with dv split by component (dv[c n + i]), v and x not.
+bool advanceSplit(double h, const VecX& dv, VecX& v, VecX& x) {
+  const Eigen::Index n = v.size() / 3;
+  const double* d[3] = {dv.data(), dv.data() + n, dv.data() + 2 * n};
+  double* w = v.data();
+  double* y = x.data();
+  constexpr double kMax = std::numeric_limits<double>::max();
+  int finite = 1;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    for (int c = 0; c < 3; ++c) {
+      const Eigen::Index k = 3 * i + c;
+      w[k] += d[c][i];
+      y[k] += h * w[k];
+      finite &= static_cast<int>(std::fabs(w[k]) <= kMax) & static_cast<int>(std::fabs(y[k]) <= kMax);
+    }
+  }
+  return finite != 0;
+}
+
+}  // namespace
+
+bool Stepper::splitStepApplies(double h, const VecX& x, const VecX& v) const {
+  if (contact_on_ || !first_pass_ || (repulsion_ && !repulsion_->empty()) ||
+      !filter_.projectedNodes().empty()) {
+    return false;
+  }
+  for (size_t k = 0; k < pins_->nodes.size(); ++k) {  // every pin held where it is
+    const int p = pins_->nodes[k];
+    const Vec3 at = x.segment<3>(3 * p);
+    const Vec3 dv = (pins_->targets[k] - at) / h - v.segment<3>(3 * p);
+    if (pins_->targets[k] != at || dv.squaredNorm() > 0.0) return false;
+  }
+  return true;
+}
+
+StepStats Stepper::implicitEulerSplit(const Model& model, double h, VecX& x, VecX& v) {
+  // implicitEuler without contact, repulsion, moving or projected pins: the
+  // same arithmetic on the same numbers, with f, K v0, the right side and dv
+  // split by component (no join of f and K v0, no split of the right side
+  // and the warm start, no join of dv: five passes over 3n).
+  StepStats stats;
+  const int n = model.numNodes();
+  auto t0 = Clock::now();
+  assembleSystem(model, x, v, h, h * h, settings_.project_compression && !exact_hessian_, A_,
+                 f_split_, &v, &kv_split_, nullptr, /*split_out=*/true);
+  rhs_split_ = h * (f_split_ + h * kv_split_);
+  filter_.applySplit(rhs_split_.data());
+  stats.assembly_s = secondsSince(t0);
+
+  t0 = Clock::now();
+  if (dv_split_.size() != 3 * n) dv_split_.setZero(3 * n);
+  if (!recycled_split_) recycled_.clear(), recycled_split_ = true;  // kept unsplit
+  recycled_.useFor(h);
+  if (recycled_iterations_ >= 2) recycled_.guess(rhs_split_, &dv_split_);
+  const CgResult cg = solveLinear(model, rhs_split_, dv_split_, 0.0, /*split=*/true);
+  recycled_.record(dv_split_, rhs_split_);
+  recycled_iterations_ = cg.iterations;
+  stats.solve_s = secondsSince(t0);
+  stats.cg_iterations = cg.iterations;
+  stats.residual = cg.relative_residual;
+  stats.linear_converged = cg.converged;
+  stats.newton_iterations = 1;
+
+  finite_ = advanceSplit(h, dv_split_, v, x);
+  linearized_ = false;  // no constraint supplied work: nothing to read off
+  placePins(x);
+  return stats;
+}
+
+StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v) {
+  if (splitStepApplies(h, x, v)) return implicitEulerSplit(model, h, x, v);
+  StepStats stats;
+  const int n = model.numNodes();
+  auto t0 = Clock::now();
+  assemble(model, x, v, h, h * h, &v, &dfdx_v_, nullptr, true);
+  rhs_ = h * (f_ + h * dfdx_v_);
+  // Pinned velocity changes are prescribed: move their columns to the right side.
+  // Nonzero only where the last step prescribed a change (pins_move).
+  if (pinned_dv_dirty_ || pinned_dv_.size() != 3 * n) pinned_dv_.setZero(3 * n);
+  bool pins_move = false;
+  // Without friction or prescribed columns: the constraints' reaction (the
+  // contacts', the held nodes', the moving pins') is measured against it.
+  bool pins_drive = false;  // a pin moves in this step: its work is read off the reaction
+  for (size_t k = 0; k < pins_->nodes.size() && !pins_drive && pins_->reaction_read; ++k) {
+    pins_drive = pins_->targets[k] != Vec3(x.segment<3>(3 * pins_->nodes[k]));
+  }
+  const bool react = contact_on_ || !pins_->directions.empty() || pins_drive;
+  if (react) rhs0_ = rhs_;
+  if (contact_on_) {
+    pins_move = contact_.prescribeChange(x, h, v, pinned_dv_);
+    contact_.setFrictionSolve(ContactSet::FrictionSolve::Linearized);
+    contact_.addFriction(rhs_, h, v);  // at v0; its turn term in A acts on dv
+    contact_.addFrictionJacobian(A_, h, v);
+  }
+  for (size_t k = 0; k < pins_->nodes.size(); ++k) {
+    if (yieldsToContact(k)) continue;
+    const int p = pins_->nodes[k];
+    Vec3 dv = (pins_->targets[k] - x.segment<3>(3 * p)) / h - v.segment<3>(3 * p);
+    const Vec3 n = pins_->direction(k);
+    if (n.squaredNorm() > 0.0) dv = n * n.dot(dv);  // the rest is solved for
+    pinned_dv_.segment<3>(3 * p) = dv;
+    pins_move = pins_move || dv.squaredNorm() > 0.0;
+  }
+  pinned_dv_dirty_ = pins_move;  // else every entry written is zero
+  if (pins_move) {
+    A_.multiplyAll(pinned_dv_, g_);
+    rhs_ -= g_;
+  }
+  filter_.apply(rhs_);
+  stats.assembly_s = secondsSince(t0);
+
+  t0 = Clock::now();
+  if (dv_.size() != 3 * n) dv_.setZero(3 * n);
+  if (first_pass_) {
+    // Warm start from the last answers at this step size (recycled_start.hpp),
+    // else from the last step's dv. Not where the last solve took less than
+    // two CG iterations: its guess (its dot products) then costs more than
+    // it saves (the seed at its own CG 1e-2: 0.5 iterations a step either
+    // way). Not with contact: another start within the tolerance took the
+    // contact hard case c4 (a cloth stiffened on a table, stretch 1e7, dt
+    // 0.1) from 11 rejected sub-steps to a failure on energy after 8
+    // halvings. Later contact passes start from the last pass.
+    if (recycled_split_) recycled_.clear(), recycled_split_ = false;  // kept split
+    recycled_.useFor(h);
+    if (recycled_iterations_ >= 2 && !contact_on_) recycled_.guess(rhs_, &dv_);
+  }
+  const CgResult cg = solveLinear(model, rhs_, dv_);
+  if (first_pass_ && !contact_on_) {  // kept only where a guess uses it
+    recycled_.record(dv_, rhs_);
+    recycled_iterations_ = cg.iterations;
+  }
+  stats.solve_s = secondsSince(t0);
+  stats.cg_iterations = cg.iterations;
+  stats.residual = cg.relative_residual;
+  stats.linear_converged = cg.converged;
+  stats.newton_iterations = 1;
+
+  if (pins_move) dv_ += pinned_dv_;  // else it is zero
+  finite_ = advance(h, dv_, v, x);  // placePins puts pins on their (finite) targets
+  if (react) {  // reaction = A dv - rhs0: what the constraints supplied, times h
+    A_.multiplyAll(dv_, g_);
+    reaction_ = g_ - rhs0_;
+    for (const auto& [node, block] : A_.nodeBlocks()) {  // friction is not a reaction
+      reaction_.segment<3>(3 * node) -= block * Vec3(dv_.segment<3>(3 * node));
+    }
+    bh_ = h;
+  }
+  linearized_ = react;
+  if (pins_move) dv_ -= pinned_dv_;  // the free part warm-starts the next solve
+  placePins(x);
+  return stats;
+}
+
+}  // namespace cloth_sim
