@@ -41,8 +41,12 @@ class RecycledStart {
   /// another size than the kept ones' clears them first. After guess(b),
   /// the same b's products with the kept sides are reused.
   void record(const VecX& x, const VecX& b);
+  /// The same, b taken by a swap instead of a copy: b holds some earlier
+  /// right-hand side (or nothing) afterwards.
+  void recordTaking(const VecX& x, VecX& b);
 
  private:
+  void keep(const VecX& x, const VecX& b, VecX* take);  ///< record's; takes b with `take`
   int capacity_;
   int count_ = 0;
   int next_ = 0;                  ///< the slot the next record overwrites

@@ -89,7 +89,11 @@ bool RecycledStart::solveNormalEquations() {
   return coefficients_.allFinite();
 }
 
-void RecycledStart::record(const VecX& x, const VecX& b) {
+void RecycledStart::record(const VecX& x, const VecX& b) { keep(x, b, nullptr); }
+
+void RecycledStart::recordTaking(const VecX& x, VecX& b) { keep(x, b, &b); }
+
+void RecycledStart::keep(const VecX& x, const VecX& b, VecX* take) {
   if (count_ > 0 && b.size() != rights_[0].size()) clear();
   const int n = static_cast<int>(b.size());
   // b's products with the kept sides: the guess's, if it was for this b (the
@@ -98,11 +102,16 @@ void RecycledStart::record(const VecX& x, const VecX& b) {
   guessed_ = nullptr;
   const int slot = next_;
   answers_[slot] = x;
-  rights_[slot] = b;
+  if (take) {
+    rights_[slot].swap(*take);  // b (the same vector) holds an old side now
+  } else {
+    rights_[slot] = b;
+  }
+  const double* kept = rights_[slot].data();
   count_ = std::min(count_ + 1, capacity_);
   next_ = (next_ + 1) % capacity_;
   for (int k = 0; k < count_; ++k) {
-    const double d = !known     ? cg_kernels::dot(n, rights_[k].data(), b.data())
+    const double d = !known     ? cg_kernels::dot(n, rights_[k].data(), kept)
                      : k == slot ? b_squared_
                                  : projected_[k];
     gram_(slot, k) = gram_(k, slot) = d;
