@@ -34,6 +34,15 @@ bool advanceArrays(long size, double h, const double* __restrict d, double* __re
   return finite != 0;
 }
 
+/// A linearized step's solve in its stats: one Newton iteration, CG's figures.
+void noteSolve(const CgResult& cg, Clock::time_point start, StepStats* stats) {
+  stats->solve_s = secondsSince(start);
+  stats->cg_iterations = cg.iterations;
+  stats->residual = cg.relative_residual;
+  stats->linear_converged = cg.converged;
+  stats->newton_iterations = 1;
+}
+
 bool advance(double h, const VecX& dv, VecX& v, VecX& x) {
   return advanceArrays(static_cast<long>(v.size()), h, dv.data(), v.data(), x.data());
 }
@@ -75,11 +84,7 @@ StepStats Stepper::implicitEulerSplit(const Model& model, double h, VecX& x, Vec
   const CgResult cg = solveLinear(model, rhs_split_, dv_split_, 0.0, /*split=*/true);
   recycled_.recordTaking(dv_split_, rhs_split_);  // set afresh before it is read again
   recycled_iterations_ = cg.iterations;
-  stats.solve_s = secondsSince(t0);
-  stats.cg_iterations = cg.iterations;
-  stats.residual = cg.relative_residual;
-  stats.linear_converged = cg.converged;
-  stats.newton_iterations = 1;
+  noteSolve(cg, t0, &stats);
 
   // dv joined, then advanced: two plain passes beat one gathering three
   // components a node (2000 cycles a seed step where 800). dv_ is then the
@@ -154,11 +159,7 @@ StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v)
     recycled_.record(dv_, rhs_);
     recycled_iterations_ = cg.iterations;
   }
-  stats.solve_s = secondsSince(t0);
-  stats.cg_iterations = cg.iterations;
-  stats.residual = cg.relative_residual;
-  stats.linear_converged = cg.converged;
-  stats.newton_iterations = 1;
+  noteSolve(cg, t0, &stats);
 
   if (pins_move) dv_ += pinned_dv_;  // else it is zero
   finite_ = advance(h, dv_, v, x);  // placePins puts pins on their (finite) targets
