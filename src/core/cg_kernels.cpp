@@ -192,32 +192,16 @@ inline __attribute__((always_inline)) void combineOf(int n, const double* const*
 
 CLOTH_SIM_VECTORISED
 void dots(int n, int count, const double* const* v, const double* b, double* out) {
-  switch (count) {
-    case 1: dotsOf<1>(n, v, b, out); break;
-    case 2: dotsOf<2>(n, v, b, out); break;
-    case 3: dotsOf<3>(n, v, b, out); break;
-    case 4: dotsOf<4>(n, v, b, out); break;
-    case 5: dotsOf<5>(n, v, b, out); break;
-    case 6: dotsOf<6>(n, v, b, out); break;
-    case 7: dotsOf<7>(n, v, b, out); break;
-    case 8: dotsOf<8>(n, v, b, out); break;
-    default: break;
-  }
+  withCount<kMaxVectors>(count, [&](auto k) __attribute__((always_inline)) {
+    dotsOf<decltype(k)::value>(n, v, b, out);
+  });
 }
 
 CLOTH_SIM_VECTORISED
 void combine(int n, int count, const double* const* v, const double* c, double* y) {
-  switch (count) {
-    case 1: combineOf<1>(n, v, c, y); break;
-    case 2: combineOf<2>(n, v, c, y); break;
-    case 3: combineOf<3>(n, v, c, y); break;
-    case 4: combineOf<4>(n, v, c, y); break;
-    case 5: combineOf<5>(n, v, c, y); break;
-    case 6: combineOf<6>(n, v, c, y); break;
-    case 7: combineOf<7>(n, v, c, y); break;
-    case 8: combineOf<8>(n, v, c, y); break;
-    default: break;
-  }
+  withCount<kMaxVectors>(count, [&](auto k) __attribute__((always_inline)) {
+    combineOf<decltype(k)::value>(n, v, c, y);
+  });
 }
 
 }  // namespace cg_kernels

@@ -110,17 +110,9 @@ inline __attribute__((always_inline)) void differencesOfAll(int n, const double*
 CLOTH_SIM_VECTORISED
 void differencesOfAllDispatch(int n, int count, const double* const* t, const int* o,
                               bool from_zero, double* y) {
-  switch (count) {
-    case 1: differencesOfAll<1>(n, t, o, from_zero, y); break;
-    case 2: differencesOfAll<2>(n, t, o, from_zero, y); break;
-    case 3: differencesOfAll<3>(n, t, o, from_zero, y); break;
-    case 4: differencesOfAll<4>(n, t, o, from_zero, y); break;
-    case 5: differencesOfAll<5>(n, t, o, from_zero, y); break;
-    case 6: differencesOfAll<6>(n, t, o, from_zero, y); break;
-    case 7: differencesOfAll<7>(n, t, o, from_zero, y); break;
-    case 8: differencesOfAll<8>(n, t, o, from_zero, y); break;
-    default: break;
-  }
+  withCount<PaddedTerms::kMaxDirections>(count, [&](auto k) __attribute__((always_inline)) {
+    differencesOfAll<decltype(k)::value>(n, t, o, from_zero, y);
+  });
 }
 
 /// forceSweep's loop for one combination of outputs and damping. kRegular:

@@ -8,3 +8,21 @@
 #else
 #define CLOTH_SIM_VECTORISED
 #endif
+
+#include <type_traits>
+
+namespace cloth_sim {
+
+/// f(std::integral_constant<int, count>()) for count in 1..kMax (nothing
+/// otherwise): a kernel over `count` arrays with the count a constant, so
+/// the compiler unrolls it (one dispatch for every such kernel).
+template <int kMax, int k = 1, typename F>
+inline __attribute__((always_inline)) void withCount(int count, F&& f) {
+  if (count == k) {
+    f(std::integral_constant<int, k>());
+    return;
+  }
+  if constexpr (k < kMax) withCount<kMax, k + 1>(count, f);
+}
+
+}  // namespace cloth_sim
