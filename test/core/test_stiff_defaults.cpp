@@ -2,6 +2,7 @@
 // pick what a stiff cloth needs, so a calm hanging cloth never splits a step.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <string>
 #include <utility>
 
@@ -215,6 +216,36 @@ TEST(CollapsedStart, DeepestHalvingIsRefinedNotFailed) {
   EXPECT_GE(s.linearized, 1);  // reported, as every linearized sub-step
   EXPECT_LT(s.energy, e0);
   EXPECT_LT(sim.maxStrain(), 0.1);
+}
+
+// Contact hard case c4 (a cloth on a table, half over its edge, stiffened
+// from 10 to 1e8 N/m at 0.8 s) under bdf2 at dt 0.1, a stability-map run.
+// Each contact pass is a Newton solve, and the stiffened cloth's contact set
+// changes pass after pass (nodes released for pulling, back for
+// penetrating): Newton missed its tolerance at every depth down to dt/256,
+// and the run failed there on energy after 39 rejected attempts. With
+// colliders, a Newton that misses its tolerance now gives way to the
+// linearized backward-Euler step (refined where it gains energy) before a
+// halving, and says so.
+TEST(StiffenedOnATable, UnconvergedNewtonWithContactTakesALinearizedStepBeforeHalving) {
+  Simulation sim(loadScene(kHardDir + "contact/c4_stiffen_on_table.yaml",
+                           {"solver.method=bdf2", "solver.dt=0.1",
+                            "springs.stretch.stiffness=10"}));
+  int halvings = 0, linearized = 0;
+  std::string said;
+  for (int n = 0; n < 9; ++n) {
+    const StepStats s = sim.step();
+    ASSERT_TRUE(s.ok) << "t = " << sim.time() << ": " << s.failure;
+    ASSERT_TRUE(s.finite);
+    halvings = std::max(halvings, s.halvings);
+    linearized += s.linearized;
+    if (s.linearized > 0) said = s.failure;
+  }
+  EXPECT_NEAR(sim.time(), 0.9, 1e-12);
+  EXPECT_LE(halvings, 1);
+  EXPECT_GE(linearized, 1);  // reported
+  EXPECT_NE(said.find("linearized backward-Euler"), std::string::npos) << said;
+  EXPECT_LT(sim.maxStrain(), 0.2) << "the shear springs stay as friction held them";
 }
 
 // Linearly implicit bdf2 (one Newton iteration: the benchmark's cheapest

@@ -52,7 +52,7 @@ TEST_P(ContactHardCase, PassesWithoutPenetration) {
   for (double m : sim.model().mass) mass += m;
   const double size = std::hypot(scene.cloth.width, scene.cloth.length);
   const long steps = std::lround(duration / scene.solver.dt);
-  long rejected = 0, passes = 0;
+  long rejected = 0, passes = 0, linearized = 0;
   double worst_strain = 0.0, previous = sim.energy();
   const auto start = std::chrono::steady_clock::now();
   for (long n = 0; n < steps; ++n) {
@@ -63,6 +63,7 @@ TEST_P(ContactHardCase, PassesWithoutPenetration) {
     ASSERT_TRUE(sim.positions().allFinite() && sim.velocities().allFinite());
     ASSERT_LE(st.max_penetration, kMaxPenetration) << "step " << n;
     rejected += st.rejected;
+    linearized += st.linearized;
     passes += st.contact_passes;
     if (no_inputs) {
       ASSERT_LE(st.energy - previous, kStepEnergyTolerance * scale + st.energy_round_off)
@@ -93,9 +94,9 @@ TEST_P(ContactHardCase, PassesWithoutPenetration) {
     }
   }
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  std::printf("[ contact  ] %s %s: %ld steps, %ld rejected, %.2f contact passes/step, strain %.3g "
+  std::printf("[ contact  ] %s %s: %ld steps, %ld rejected, %ld linearized, %.2f contact passes/step, strain %.3g "
               "after the transient, max penetration %.2g m, %.2f s\n",
-              run.file.c_str(), toString(run.method), steps, rejected,
+              run.file.c_str(), toString(run.method), steps, rejected, linearized,
               static_cast<double>(passes) / steps, worst_strain, sim.maxPenetration(), wall);
 }
 
