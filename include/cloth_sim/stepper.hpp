@@ -128,6 +128,13 @@ class Stepper {
   /// contact, no self-repulsion terms, no projected pins, every pin held
   /// where it is.
   bool splitStepApplies(double h, const VecX& x, const VecX& v) const;
+  /// Pin k's velocity change over a step of h from (x, v) that ends it on its
+  /// target (a projected pin keeps only its direction's part). The split
+  /// step's test and implicit_euler's prescribed columns read the same one.
+  Vec3 pinChange(size_t k, const VecX& x, const VecX& v, double h) const {
+    const int p = pins_->nodes[k];
+    return (pins_->targets[k] - x.segment<3>(3 * p)) / h - v.segment<3>(3 * p);
+  }
   StepStats implicitEulerSplit(const Model& model, double h, VecX& x, VecX& v);
   VecX f_split_, kv_split_, rhs_split_, dv_split_;  ///< its vectors, split by component
   bool recycled_split_ = false;  ///< recycled_ holds split vectors

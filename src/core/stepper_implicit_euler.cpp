@@ -54,10 +54,8 @@ bool Stepper::splitStepApplies(double h, const VecX& x, const VecX& v) const {
     return false;
   }
   for (size_t k = 0; k < pins_->nodes.size(); ++k) {  // every pin held where it is
-    const int p = pins_->nodes[k];
-    const Vec3 at = x.segment<3>(3 * p);
-    const Vec3 dv = (pins_->targets[k] - at) / h - v.segment<3>(3 * p);
-    if (pins_->targets[k] != at || dv.squaredNorm() > 0.0) return false;
+    const Vec3 at = x.segment<3>(3 * pins_->nodes[k]);
+    if (pins_->targets[k] != at || pinChange(k, x, v, h).squaredNorm() > 0.0) return false;
   }
   return true;
 }
@@ -125,7 +123,7 @@ StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v)
   for (size_t k = 0; k < pins_->nodes.size(); ++k) {
     if (yieldsToContact(k)) continue;
     const int p = pins_->nodes[k];
-    Vec3 dv = (pins_->targets[k] - x.segment<3>(3 * p)) / h - v.segment<3>(3 * p);
+    Vec3 dv = pinChange(k, x, v, h);
     const Vec3 n = pins_->direction(k);
     if (n.squaredNorm() > 0.0) dv = n * n.dot(dv);  // the rest is solved for
     pinned_dv_.segment<3>(3 * p) = dv;
