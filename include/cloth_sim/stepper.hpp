@@ -129,8 +129,8 @@ class Stepper {
   /// where it is.
   bool splitStepApplies(double h, const VecX& x, const VecX& v) const;
   /// Pin k's velocity change over a step of h from (x, v) that ends it on its
-  /// target (a projected pin keeps only its direction's part). The split
-  /// step's test and implicit_euler's prescribed columns read the same one.
+  /// target, whole (for a projected pin the caller keeps n n^T of it). The
+  /// split step's test and implicit_euler's prescribed columns read this one.
   Vec3 pinChange(size_t k, const VecX& x, const VecX& v, double h) const {
     const int p = pins_->nodes[k];
     return (pins_->targets[k] - x.segment<3>(3 * p)) / h - v.segment<3>(3 * p);
