@@ -5,11 +5,11 @@
 #pragma once
 
 #include <Eigen/Sparse>
-#include <Eigen/SparseCholesky>
 #include <array>
 #include <memory>
 #include <vector>
 
+#include "cloth_sim/block_ldlt.hpp"
 #include "cloth_sim/constraint_filter.hpp"
 #include "cloth_sim/model.hpp"
 #include "cloth_sim/multigrid.hpp"
@@ -46,7 +46,7 @@ class CholeskyFactor {
   /// when a new one appears). Returns false if not positive definite.
   bool factorize(const SystemMatrix& A, const std::vector<Spring>& springs,
                  const ConstraintFilter& filter, int grid_cols);
-  void solve(const VecX& r, VecX& z) const { z = ldlt_.solve(r); }
+  void solve(const VecX& r, VecX& z) const { ldlt_.solve(r, z); }
   /// A factor of a recent matrix is still a very good preconditioner: it is
   /// reused until a solve needs more than this many CG iterations.
   static constexpr int kRefactorIterations = 10;
@@ -69,7 +69,7 @@ class CholeskyFactor {
   /// indices (9 a spring, entry (r, c) at 3c + r) of the blocks it adds to:
   /// block (max, min) of its ends, or of its two halves.
   std::vector<int> via_, block_a_, block_b_;
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower> ldlt_;
+  BlockLdlt ldlt_;
   int num_nodes_ = -1;
   size_t num_springs_ = 0;
   int grid_cols_ = 0;

@@ -56,11 +56,11 @@
 #pragma once
 
 #include <Eigen/Sparse>
-#include <Eigen/SparseCholesky>
 #include <algorithm>
 #include <memory>
 #include <vector>
 
+#include "cloth_sim/block_ldlt.hpp"
 #include "cloth_sim/constraint_filter.hpp"
 #include "cloth_sim/model.hpp"
 #include "cloth_sim/types.hpp"
@@ -239,7 +239,7 @@ class MultigridPreconditioner {
   Eigen::SparseMatrix<double> coarse_matrix_;
   std::vector<int> coarse_node_index_;   ///< value index of entry r >= c of node blocks, 6 a node
   std::vector<int> coarse_lower_index_;  ///< value index of all 9 entries of each lower block
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower> coarse_ldlt_;
+  BlockLdlt coarse_ldlt_;
   // What the patterns were built for.
   int rows_ = -1, cols_ = -1;
   std::vector<int> spring_ends_;

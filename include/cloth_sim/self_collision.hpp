@@ -124,8 +124,12 @@ class SelfCollision {
   /// The repulsion terms of a step from x0 (self_repulsion.hpp), x1 a
   /// prediction of its end (x0 + h v0): per node, the nearest triangle (not
   /// its own) whose gap is below `reach` at x0 or, along the normal at x0,
-  /// at x1, and the nearest on the node's other side (a node between two
-  /// layers). Weights and normal are the closest points' at x0; the
+  /// at x1, and one on the node's other side (a node between two layers):
+  /// the most energy at x0 among the triangles whose normal opposes the
+  /// first's, its stiffness weighted from 0 (normals 104 degrees apart)
+  /// to 1 (139 degrees and beyond), so that the energy the terms measure at
+  /// x0 = x1 changes continuously with the positions and not with the order
+  /// of the hash's pairs. Weights and normal are the closest points' at x0; the
   /// stiffness is `scale` times the pair's effective mass 1 / sum_k w_k^2 / m_k
   /// (scale c / h^2: c times as stiff as its nodes' inertia over the step);
   /// active where the gap at x0 is below the reach. Point-triangle pairs only:
@@ -216,7 +220,15 @@ class SelfCollision {
   std::vector<Pair> close_;         ///< apply's close pairs (kept for its capacity)
   std::vector<int> sweep_nodes_;    ///< the nodes of the close pairs (sorted, unique)
   std::vector<Vec3> sweep_start_;   ///< their x1 at the start of a proximity sweep
-  /// repulsionTerms': per node, its terms on either side (-1: none yet)
+  /// repulsionTerms': every candidate term, and per node the candidates
+  /// chosen on either side (-1: none)
+  struct Candidate {
+    RepulsionTerm term;
+    double distance;
+    int node;
+  };
+  std::vector<Candidate> candidates_;
+  std::vector<double> side_weight_;
   std::vector<std::array<int, 2>> node_terms_;
 };
 

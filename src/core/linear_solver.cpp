@@ -176,8 +176,7 @@ bool CholeskyFactor::factorize(const SystemMatrix& A, const std::vector<Spring>&
       couple(nine, a, b, ww * B);
     });
   }
-  ldlt_.factorize(matrix_);
-  valid_ = ldlt_.info() == Eigen::Success;
+  valid_ = ldlt_.factorize(matrix_);
   filter_ = filter;
   return valid_;
 }

@@ -447,8 +447,7 @@ bool MultigridPreconditioner::factorCoarsest() {
       for (int c = 0; c < 3; ++c) values[coarse_lower_index_[9 * s + 3 * r + c]] = L(r, c);
     }
   }
-  coarse_ldlt_.factorize(coarse_matrix_);
-  return coarse_ldlt_.info() == Eigen::Success;
+  return coarse_ldlt_.factorize(coarse_matrix_);
 }
 
 bool MultigridPreconditioner::matchesStructure(const SystemMatrix& A,
@@ -558,7 +557,7 @@ void MultigridPreconditioner::vcycle(int l) {
   Level& level = levels_[l];
   const int n = level.num_nodes;
   if (l + 1 == numLevels()) {
-    level.x = coarse_ldlt_.solve(level.b);
+    coarse_ldlt_.solve(level.b, level.x);
     for (int i = 0; i < n; ++i) {
       if (!level.free[i]) level.x.segment<3>(3 * i).setZero();
     }

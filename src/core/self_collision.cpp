@@ -470,7 +470,13 @@ void SelfCollision::repulsionTerms(const Model& model, const VecX& x0, const Vec
                                    double reach, double scale, SelfRepulsion* out) {
   out->clear();
   hash_.findPairs(mesh_, x0, x1, reach, &pairs_, DistanceCull{reach, kRepulsionCullFactor});
-  node_terms_.assign(model.numNodes(), {-1, -1});
+  // Every candidate first, then per node the nearest and the nearest on its
+  // other side: a choice that does not depend on the order the hash lists
+  // pairs in. Chosen as they came (a side judged against whichever term held
+  // a node's first slot then), a pair entering or leaving the list swapped
+  // terms: the measured energy jumped by 5.6e-4 J between positions 1e-5 s
+  // apart, and a pin driven through a folded cloth failed after 8 halvings.
+  candidates_.clear();
   std::array<Vec3, 4> at;
   Pair pair;
   RepulsionTerm term;
@@ -481,17 +487,6 @@ void SelfCollision::repulsionTerms(const Model& model, const VecX& x0, const Vec
     // filter's business).
     if (pair.distance <= 1e-6 * thickness_) continue;
     term.active = pair.distance < reach;
-    if (!term.active) {
-      for (int k = 0; k < 4; ++k) term.node[k] = pair.node[k], term.w[k] = pair.w[k];
-      term.n = pair.n;
-      if (!(term.gap(x1) < reach)) continue;
-    }
-    // The node's nearest on this side, or on its other one.
-    std::array<int, 2>& slots = node_terms_[node];
-    int slot = 0;
-    if (slots[0] >= 0 && out->terms()[slots[0]].n.dot(pair.n) < 0.0) slot = 1;
-    const int held = slots[slot];
-    if (held >= 0 && !(pair.distance < out->terms()[held].gap(x0))) continue;
     double inverse_mass = 0.0;
     for (int k = 0; k < 4; ++k) {
       term.node[k] = pair.node[k];
@@ -499,14 +494,57 @@ void SelfCollision::repulsionTerms(const Model& model, const VecX& x0, const Vec
       inverse_mass += pair.w[k] * pair.w[k] / model.mass[pair.node[k]];
     }
     term.n = pair.n;
+    if (!term.active && !(term.gap(x1) < reach)) continue;
     term.stiffness = scale / inverse_mass;
     term.reach = reach;
     term.friction = friction_ * term.stiffness * std::max(reach - pair.distance, 0.0);
-    if (held >= 0) {
-      out->replace(held, term);
-    } else {
-      slots[slot] = out->size();
-      out->add(term);
+    candidates_.push_back({term, pair.distance, node});
+  }
+  // Nearest first (ties: the earlier in the hash's sorted list).
+  node_terms_.assign(model.numNodes(), {-1, -1});
+  for (int c = 0; c < static_cast<int>(candidates_.size()); ++c) {
+    int& first = node_terms_[candidates_[c].node][0];
+    if (first < 0 || candidates_[c].distance < candidates_[first].distance) first = c;
+  }
+  // Then, on the node's other side (a node between two layers), the term
+  // holding the most energy, weighted by how clearly its normal opposes the
+  // first's: a sign test flipped near 90 degrees (a node over a crumpled
+  // vertex, two normals at 89.8 degrees) and switched a 4.8e-4 J term on
+  // and off between positions 1e-5 s apart. With the weight a term fades
+  // in as its normal turns; terms not yet within the reach (predicted
+  // ones, no energy at x0): the nearest.
+  auto side = [](double cosine) {  // 0 at cos >= -0.25, 1 at cos <= -0.75, C1 between
+    const double t = std::clamp((-cosine - 0.25) / 0.5, 0.0, 1.0);
+    return t * t * (3.0 - 2.0 * t);
+  };
+  auto held = [&](const Candidate& c, double weight) {
+    const double d = std::max(c.term.reach - c.distance, 0.0);
+    return weight * c.term.stiffness * d * d;
+  };
+  side_weight_.assign(candidates_.size(), 0.0);
+  for (int c = 0; c < static_cast<int>(candidates_.size()); ++c) {
+    std::array<int, 2>& slots = node_terms_[candidates_[c].node];
+    if (c == slots[0]) continue;
+    const double w = side(candidates_[c].term.n.dot(candidates_[slots[0]].term.n));
+    if (!(w > 0.0)) continue;
+    side_weight_[c] = w;
+    const int best = slots[1];
+    if (best < 0) {
+      slots[1] = c;
+      continue;
+    }
+    const double mine = held(candidates_[c], w), theirs = held(candidates_[best], side_weight_[best]);
+    if (mine > theirs || (mine == theirs && candidates_[c].distance < candidates_[best].distance)) slots[1] = c;
+  }
+  for (const std::array<int, 2>& slots : node_terms_) {
+    if (slots[1] < 0) continue;
+    Candidate& c = candidates_[slots[1]];
+    c.term.stiffness *= side_weight_[slots[1]];
+    c.term.friction *= side_weight_[slots[1]];
+  }
+  for (const std::array<int, 2>& slots : node_terms_) {
+    for (int c : slots) {
+      if (c >= 0) out->add(candidates_[c].term);
     }
   }
 }

@@ -1,0 +1,57 @@
+// A sparse LDL^T factorization that works on 3 x 3 node blocks: the system
+// matrices of the cloth (one block per node and per coupled node pair) are
+// factored and solved with fixed-size block products instead of scalar
+// sparse loops, for the Cholesky preconditioner and the multigrid's coarse
+// solve. Ordering: approximate minimum degree on the node graph.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Sparse>
+#include <vector>
+
+#include "cloth_sim/types.hpp"
+
+namespace cloth_sim {
+
+/// P A P^T = L D L^T with L unit lower block triangular and D block diagonal
+/// (3 x 3 SPD blocks), P a node permutation.
+///
+/// Input: the lower triangle (row >= col) of a symmetric 3n x 3n matrix in
+/// Eigen's compressed column storage. Entries of one node pair form a block;
+/// a block's missing entries count as zero.
+class BlockLdlt {
+ public:
+  /// Orders the nodes and lays out L for `lower`'s pattern.
+  void analyzePattern(const Eigen::SparseMatrix<double>& lower);
+  /// Factors `lower` (the analysed pattern, new values). Returns false, and
+  /// keeps no factor, where a pivot block is not positive definite.
+  bool factorize(const Eigen::SparseMatrix<double>& lower);
+  /// z = A^-1 r (needs a successful factorize). z may not alias r.
+  void solve(const VecX& r, VecX& z) const;
+  /// Blocks of L below the diagonal (for tests and the docs' fill figures).
+  int lowerBlocks() const { return static_cast<int>(l_rows_.size()); }
+  int numNodes() const { return n_; }
+
+ private:
+  int n_ = 0;
+  std::vector<int> perm_;   ///< node -> position in the factor
+  std::vector<int> iperm_;  ///< position -> node
+  /// A's blocks, row by row in factor order: row k holds its diagonal block
+  /// (first) and the blocks (k, j), j < k.
+  std::vector<int> a_row_start_, a_col_;
+  /// Per scalar entry of the input, the value slots (block * 9 + 3c + r) it
+  /// fills; the second is -1 unless it sits off the diagonal of a node block.
+  std::vector<int> entry_slot_, entry_mirror_;
+  std::vector<Mat3> a_blocks_;
+  std::vector<int> parent_;                   ///< elimination tree
+  std::vector<int> l_start_;                  ///< column j of L: [l_start_[j], l_start_[j+1])
+  std::vector<int> l_rows_;                   ///< rows of L's blocks, column by column
+  std::vector<Mat3> l_blocks_;                ///< L's blocks
+  std::vector<Mat3> d_inverse_;               ///< D's blocks inverted
+  // Factorization scratch (kept to avoid allocating per factorization).
+  std::vector<int> l_fill_, pattern_, mark_;
+  std::vector<Mat3> row_;
+  mutable std::vector<Vec3> work_;
+};
+
+}  // namespace cloth_sim
