@@ -14,7 +14,7 @@
 namespace cloth_sim {
 
 /// P A P^T = L D L^T with L unit lower block triangular and D block diagonal
-/// (3 x 3 SPD blocks), P a node permutation.
+/// (3 x 3 symmetric blocks, SPD for an SPD A), P a node permutation.
 ///
 /// Input: the lower triangle (row >= col) of a symmetric 3n x 3n matrix in
 /// Eigen's compressed column storage. Entries of one node pair form a block;
@@ -24,7 +24,8 @@ class BlockLdlt {
   /// Orders the nodes and lays out L for `lower`'s pattern.
   void analyzePattern(const Eigen::SparseMatrix<double>& lower);
   /// Factors `lower` (the analysed pattern, new values). Returns false, and
-  /// keeps no factor, where a pivot block is not positive definite.
+  /// keeps no factor, where a pivot block is singular or not finite; an
+  /// indefinite one is factored on (D then has it), as Eigen's scalar LDL^T did.
   bool factorize(const Eigen::SparseMatrix<double>& lower);
   /// z = A^-1 r (needs a successful factorize). z may not alias r.
   void solve(const VecX& r, VecX& z) const;

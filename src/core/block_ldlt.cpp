@@ -1,8 +1,10 @@
 #include "cloth_sim/block_ldlt.hpp"
 
 #include <Eigen/Cholesky>
+#include <Eigen/LU>
 #include <Eigen/OrderingMethods>
 #include <algorithm>
+#include <cmath>
 #include <utility>
 #include <cstdio>
 #include <cstdlib>
@@ -149,9 +151,22 @@ bool BlockLdlt::factorize(const Eigen::SparseMatrix<double>& lower) {
       if (dsym.llt().info() != Eigen::Success) fprintf(stderr, "INDEF pivot %d\n", k);
       continue;
     }
+    if (!d.allFinite()) return false;  // row_ is all zero again
     const Eigen::LLT<Mat3> pivot(d);
-    if (pivot.info() != Eigen::Success || !d.allFinite()) return false;  // row_ is all zero again
-    d_inverse_[k] = pivot.solve(Mat3::Identity());
+    if (pivot.info() == Eigen::Success) {
+      d_inverse_[k] = pivot.solve(Mat3::Identity());
+    } else {
+      // Indefinite: factored on, as Eigen's scalar LDL^T did (it failed
+      // only on a zero pivot). Refusing it made the contact cases worse
+      // (c4 under newton at stretch 1e7, dt 0.1: recovered, then failed
+      // with 61 refused factors; also session 37's probe): where Newton's
+      // exact Hessian is indefinite the caller's recovery decides, and an
+      // indefinite preconditioner still takes CG to its tolerance or stops it.
+      const Mat3 sym = 0.5 * (d + d.transpose());
+      const double det = sym.determinant();
+      if (!(std::abs(det) > 0.0) || !std::isfinite(det)) return false;
+      d_inverse_[k] = sym.inverse();
+    }
   }
   return true;
 }

@@ -4,6 +4,7 @@
 
 #include <Eigen/Dense>
 #include <Eigen/SparseCholesky>
+#include <limits>
 #include <random>
 #include <utility>
 #include <vector>
@@ -113,13 +114,28 @@ TEST(BlockLdlt, RefactorsNewValuesOnTheSamePattern) {
   EXPECT_LT(backwardError(second.dense, z, b), 1e-15);  // condition ~1e12: the error itself is not small
 }
 
-TEST(BlockLdlt, RefusesAnIndefiniteMatrixAndFactorsTheNextOne) {
+TEST(BlockLdlt, FactorsAnIndefiniteMatrixExactly) {
+  // Newton's exact Hessian can be indefinite: the factor goes on (no zero
+  // pivot), as Eigen's scalar LDL^T did, and still solves exactly.
   BlockSystem s = clothLike(8, 8, 10, 3);
   BlockLdlt ldlt;
   ldlt.analyzePattern(s.lower);
-  Eigen::SparseMatrix<double> indefinite = s.lower;
-  indefinite.coeffRef(3 * 20, 3 * 20) = -1e4;  // one node's xx entry
-  EXPECT_FALSE(ldlt.factorize(indefinite));
+  s.lower.coeffRef(3 * 20, 3 * 20) = -1e4;  // one node's xx entry
+  s.dense(3 * 20, 3 * 20) = -1e4;
+  ASSERT_TRUE(ldlt.factorize(s.lower));
+  const VecX b = VecX::Random(s.dense.rows());
+  VecX z;
+  ldlt.solve(b, z);
+  EXPECT_LT(backwardError(s.dense, z, b), 1e-15);
+}
+
+TEST(BlockLdlt, RefusesANonFiniteMatrixAndFactorsTheNextOne) {
+  const BlockSystem s = clothLike(8, 8, 10, 5);
+  BlockLdlt ldlt;
+  ldlt.analyzePattern(s.lower);
+  Eigen::SparseMatrix<double> broken = s.lower;
+  broken.coeffRef(3 * 30 + 1, 3 * 30) = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_FALSE(ldlt.factorize(broken));
   ASSERT_TRUE(ldlt.factorize(s.lower));  // no scratch left over from the failure
   const VecX b = VecX::Random(s.dense.rows());
   VecX z;
