@@ -6,9 +6,6 @@
 #include <algorithm>
 #include <cmath>
 #include <utility>
-#include <cstdio>
-#include <cstdlib>
-#include <Eigen/LU>
 
 namespace cloth_sim {
 
@@ -143,13 +140,6 @@ bool BlockLdlt::factorize(const Eigen::SparseMatrix<double>& lower) {
       d.noalias() -= l * w.transpose();
       l_rows_[l_fill_[i]] = k;
       l_blocks_[l_fill_[i]++] = l;
-    }
-    if (getenv("LOOSE_PD")) {
-      const Mat3 dsym = 0.5 * (d + d.transpose());
-      if (!(std::abs(dsym.determinant()) > 0) || !d.allFinite()) return false;
-      d_inverse_[k] = dsym.inverse();
-      if (dsym.llt().info() != Eigen::Success) fprintf(stderr, "INDEF pivot %d\n", k);
-      continue;
     }
     if (!d.allFinite()) return false;  // row_ is all zero again
     const Eigen::LLT<Mat3> pivot(d);
