@@ -89,6 +89,14 @@ double backwardError(const Eigen::MatrixXd& A, const VecX& z, const VecX& b) {
 
 double relativeError(const VecX& x, const VecX& exact) { return (x - exact).norm() / exact.norm(); }
 
+/// The backward error of the factor's solve of A z = b for a random b.
+double solveBackwardError(const BlockLdlt& ldlt, const Eigen::MatrixXd& A) {
+  const VecX b = VecX::Random(A.rows());
+  VecX z;
+  ldlt.solve(b, z);
+  return backwardError(A, z, b);
+}
+
 TEST(BlockLdlt, SolvesAClothLikeSystemToRoundOff) {
   const BlockSystem s = clothLike(12, 10, 40, 1, 1e-2);  // condition ~1e3
   BlockLdlt ldlt;
@@ -108,10 +116,7 @@ TEST(BlockLdlt, RefactorsNewValuesOnTheSamePattern) {
   ldlt.analyzePattern(first.lower);
   ASSERT_TRUE(ldlt.factorize(first.lower));
   ASSERT_TRUE(ldlt.factorize(second.lower));
-  const VecX b = VecX::Random(second.dense.rows());
-  VecX z;
-  ldlt.solve(b, z);
-  EXPECT_LT(backwardError(second.dense, z, b), 1e-15);  // condition ~1e12: the error itself is not small
+  EXPECT_LT(solveBackwardError(ldlt, second.dense), 1e-15);  // condition ~1e12: the error itself is not small
 }
 
 TEST(BlockLdlt, FactorsAnIndefiniteMatrixExactly) {
@@ -123,10 +128,7 @@ TEST(BlockLdlt, FactorsAnIndefiniteMatrixExactly) {
   s.lower.coeffRef(3 * 20, 3 * 20) = -1e4;  // one node's xx entry
   s.dense(3 * 20, 3 * 20) = -1e4;
   ASSERT_TRUE(ldlt.factorize(s.lower));
-  const VecX b = VecX::Random(s.dense.rows());
-  VecX z;
-  ldlt.solve(b, z);
-  EXPECT_LT(backwardError(s.dense, z, b), 1e-15);
+  EXPECT_LT(solveBackwardError(ldlt, s.dense), 1e-15);
 }
 
 TEST(BlockLdlt, RefusesANonFiniteMatrixAndFactorsTheNextOne) {
@@ -137,10 +139,7 @@ TEST(BlockLdlt, RefusesANonFiniteMatrixAndFactorsTheNextOne) {
   broken.coeffRef(3 * 30 + 1, 3 * 30) = std::numeric_limits<double>::quiet_NaN();
   EXPECT_FALSE(ldlt.factorize(broken));
   ASSERT_TRUE(ldlt.factorize(s.lower));  // no scratch left over from the failure
-  const VecX b = VecX::Random(s.dense.rows());
-  VecX z;
-  ldlt.solve(b, z);
-  EXPECT_LT(backwardError(s.dense, z, b), 1e-15);
+  EXPECT_LT(solveBackwardError(ldlt, s.dense), 1e-15);
 }
 
 TEST(BlockLdlt, FillOfAClothGridMatchesScalarMinimumDegree) {
