@@ -11,10 +11,15 @@
 //    what they return, so contacts that come and go never rebuild a
 //    Cholesky pattern or a multigrid hierarchy.
 // With no projected node the filter costs what the old 0/1 pin mask did.
+//
+// On top of the nodes' own filters, pairs of the cloth held at their gap
+// (pair_constraints.hpp: rows coupling four nodes), restricted to what each
+// node may do, so that the two projections commute.
 #pragma once
 
 #include <vector>
 
+#include "cloth_sim/pair_constraints.hpp"
 #include "cloth_sim/types.hpp"
 
 namespace cloth_sim {
@@ -38,16 +43,35 @@ class ConstraintFilter {
     }
   }
 
-  /// Every node free.
+  /// Every node free, no pair held.
   void reset(int num_nodes) {
     free_.assign(num_nodes, 1);
     slot_.assign(num_nodes, -1);
     eliminated_.clear();
     nodes_.clear();
     projectors_.clear();
+    pairs_.clear();
+    pairs_stale_ = false;
+  }
+  /// Holds these pairs at their gaps too (replacing any held before).
+  void holdPairs(const std::vector<PairConstraint>& pairs) {
+    pairs_.assign(pairs);
+    pairs_stale_ = !pairs.empty();
+  }
+  bool holdsPairs() const { return !pairs_.empty(); }
+  /// Changes whenever the held pairs' restricted rows do (unique across filters).
+  long pairsGeneration() const {
+    if (pairs_stale_) restrictPairs();
+    return pairs_generation_;
+  }
+  /// The held pairs, their rows restricted to the nodes' filters as they are now.
+  const PairProjection& pairs() const {
+    if (pairs_stale_) restrictPairs();
+    return pairs_;
   }
   /// The node leaves the solve (a pin).
   void eliminate(int node) {
+    pairs_stale_ = !pairs_.empty();
     if (free_[node]) eliminated_.push_back(node);
     free_[node] = 0;
     unproject(node);
@@ -55,6 +79,7 @@ class ConstraintFilter {
   /// The node keeps only the range of S (symmetric projector: S S = S).
   void project(int node, const Mat3& S) {
     if (!free_[node]) return;  // a pin wins over a contact
+    pairs_stale_ = !pairs_.empty();
     if (slot_[node] < 0) {
       slot_[node] = static_cast<int>(nodes_.size());
       nodes_.push_back(node);
@@ -79,8 +104,13 @@ class ConstraintFilter {
     return slot_[node] < 0 ? Mat3::Identity() : projectors_[slot_[node]];
   }
 
-  /// v <- S v for every node.
+  /// v <- S v for every node, then off the held pairs' rows.
   void apply(VecX& v) const {
+    applyNodes(v);
+    if (!pairs_.empty()) pairs().project(v);
+  }
+  /// v <- S v for every node (the pairs left out).
+  void applyNodes(VecX& v) const {
     for (int i : eliminated_) v.segment<3>(3 * i).setZero();
     applyProjections(v);
   }
@@ -95,6 +125,8 @@ class ConstraintFilter {
   /// layout of conjugateGradient's vectors).
   void applySplit(double* v) const;
 
+  /// The nodes' filters alike (what a preconditioner is built on; the pairs
+  /// act on its output only).
   bool operator==(const ConstraintFilter& o) const {
     return free_ == o.free_ && nodes_ == o.nodes_ && projectors_ == o.projectors_;
   }
@@ -105,6 +137,11 @@ class ConstraintFilter {
   std::vector<int> eliminated_;  ///< the nodes with free_ 0
   std::vector<int> nodes_;
   std::vector<Mat3> projectors_;
+  mutable PairProjection pairs_;
+  /// the nodes' filters changed since the pairs' rows were restricted
+  mutable bool pairs_stale_ = false;
+  mutable long pairs_generation_ = 0;
+  void restrictPairs() const;
 };
 
 }  // namespace cloth_sim

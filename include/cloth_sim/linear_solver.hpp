@@ -55,6 +55,8 @@ class CholeskyFactor {
   static constexpr int kStaleFactorIterations = 15;
   bool isValidFor(const ConstraintFilter& filter) const { return valid_ && filter == filter_; }
   void invalidate() { valid_ = false; }
+  /// Changes with every factorization (unique across factors).
+  long serial() const { return serial_; }
 
  private:
   void buildPattern(int num_nodes, const std::vector<Spring>& springs, int grid_cols);
@@ -77,6 +79,7 @@ class CholeskyFactor {
   /// those the last matrix's pair terms couple.
   std::vector<std::pair<int, int>> pattern_pairs_, pair_nodes_;
   bool valid_ = false;
+  long serial_ = 0;
   ConstraintFilter filter_;  ///< the filter the factor was made for
 };
 
@@ -110,6 +113,15 @@ struct CgWorkspace {
   /// under newton and bdf2 took 78 s where 122).
   bool reroute_bends = false;
   int plain_factors = 0;
+  /// With held pairs (ConstraintFilter::holdPairs) the Cholesky solve is made
+  /// exact on their null space too (range-space method): Y = B C^T for the
+  /// factor B and the restricted rows C, and C Y factored; made again when
+  /// the factor or the rows change (their counts below).
+  Eigen::MatrixXd pair_y;
+  Eigen::LDLT<Eigen::MatrixXd> pair_schur;
+  bool pairs_corrected = false;
+  long pair_factor = -1;  ///< CholeskyFactor::serial
+  long pair_generation = -1;
 };
 
 /// kappa = h (c + h k) / m for a step of size h (k, c the stiffest spring

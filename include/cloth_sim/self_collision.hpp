@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "cloth_sim/model.hpp"
+#include "cloth_sim/pair_constraints.hpp"
 #include "cloth_sim/scene.hpp"
 #include "cloth_sim/self_repulsion.hpp"
 #include "cloth_sim/spatial_hash.hpp"
@@ -116,6 +117,11 @@ class SelfCollision {
   /// to 4 times and reports only the last.
   SelfCollisionResult apply(const Model& model, double h, const VecX& x0,
                             const SelfCollisionMasses& masses, VecX& x1, VecX& v);
+  /// The last apply's pairs that a proximity or CCD impulse pushed apart:
+  /// nodes, weights and normal where it acted (`gap` left 0 for the caller).
+  const std::vector<PairConstraint>& pushedPairs() const { return pushed_; }
+  /// Whether the last apply moved node i with an impact zone.
+  bool movedInZone(int i) const { return in_zone_[i] != 0; }
 
   /// Distance and closeness of every candidate pair at positions x (for the
   /// final report; also the tests' proximity measure).
@@ -210,6 +216,8 @@ class SelfCollision {
   double room(int i, const VecX& x1) const;
   std::vector<int> parent_;  ///< zone union-find (a node alone is its own root)
   std::vector<char> in_zone_;
+  std::vector<PairConstraint> pushed_;  ///< pushedPairs()
+  void notePushed(const Pair& pair);
   std::vector<char> fixed_;
   struct Hit {
     int kind, a, b;

@@ -9,6 +9,7 @@
 #include "cloth_sim/contact.hpp"
 #include "cloth_sim/linear_solver.hpp"
 #include "cloth_sim/model.hpp"
+#include "cloth_sim/pair_constraints.hpp"
 #include "cloth_sim/recycled_start.hpp"
 #include "cloth_sim/scene.hpp"
 #include "cloth_sim/self_repulsion.hpp"
@@ -24,6 +25,9 @@ struct PinnedEnds {
   /// prescribed; a unit vector n, only n . x (the node slides freely across
   /// n: a self-contact resolved inside the solve). Implicit steppers only.
   std::vector<Vec3> directions;
+  /// Pairs of the cloth held at their gap (self-contacts resolved inside the
+  /// solve: one row each, equal and opposite reactions). Implicit steppers only.
+  std::vector<PairConstraint> pairs;
   /// The pin's direction, or zero when its whole position is prescribed.
   Vec3 direction(size_t k) const { return directions.empty() ? Vec3::Zero() : directions[k]; }
   /// The caller reads the moving pins' reaction after a linearized step
@@ -111,6 +115,8 @@ class Stepper {
   /// third of the held nodes' signs wrong over the run at 1e7 and 1e8, a
   /// tenth at the scene's 2e3).
   void constraintImpulses(const Model& model, const VecX& x1, const VecX& v1, VecX* out);
+  /// The last step's held pairs (PinnedEnds::pairs), as its filter restricted them.
+  const PairProjection& heldPairs() const { return filter_.pairs(); }
   /// Whether the last solve was implicit_euler's linearized step with its
   /// reaction kept (A dv - rhs; constraintImpulses returns it), and its
   /// scale b h (= h): constraintImpulses / reactionScale() is a force.

@@ -5,6 +5,7 @@ namespace cloth_sim {
 void ConstraintFilter::unproject(int node) {
   const int k = slot_[node];
   if (k < 0) return;
+  pairs_stale_ = !pairs_.empty();
   // Swap with the last entry so the lists stay dense.
   const int last = static_cast<int>(nodes_.size()) - 1;
   nodes_[k] = nodes_[last];
@@ -25,6 +26,14 @@ void ConstraintFilter::applySplit(double* v) const {
     v[n + i] = s[1];
     v[2 * n + i] = s[2];
   }
+  if (!pairs_.empty()) pairs().projectSplit(v, static_cast<int>(n));
+}
+
+void ConstraintFilter::restrictPairs() const {
+  static long generations = 0;  // one counter for every filter
+  pairs_.restrict([this](int node) { return projector(node); });
+  pairs_stale_ = false;
+  pairs_generation_ = ++generations;
 }
 
 }  // namespace cloth_sim

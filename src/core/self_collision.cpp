@@ -199,6 +199,13 @@ double SelfCollision::impulse(Pair& pair, const VecX& x0, VecX& x1, double* pin_
   return std::abs(pair.n.dot(K * dx));
 }
 
+void SelfCollision::notePushed(const Pair& pair) {
+  PairConstraint c;
+  for (int k = 0; k < 4; ++k) c.node[k] = pair.node[k], c.w[k] = pair.w[k];
+  c.n = pair.n;
+  pushed_.push_back(c);
+}
+
 int SelfCollision::find(int i) {
   while (parent_[i] != i) i = parent_[i] = parent_[parent_[i]];
   return i;
@@ -357,6 +364,8 @@ SelfCollisionResult SelfCollision::apply(const Model& model, double h, const Vec
   }
   for (int i : masses.fixed) inv_mass_[i] = 0.0, fixed_[i] = 1, normal_[i].setZero();
   x1_in_ = x1;
+  pushed_.clear();
+  in_zone_.assign(n, 0);
 
   // 1. Proximity at the end of the step.
   const double proximity = proximity_ * thickness_;
@@ -405,6 +414,9 @@ SelfCollisionResult SelfCollision::apply(const Model& model, double h, const Vec
     }
     if (largest <= std::pow(kProximitySettled * thickness_, 2)) break;
   }
+  for (const Pair& pair : close_) {
+    if (pair.normal_impulse > 0.0) notePushed(pair);
+  }
 
   // 2. CCD impulses: stop each colliding pair's normal approach at its time
   // of impact, with friction.
@@ -423,7 +435,9 @@ SelfCollisionResult SelfCollision::apply(const Model& model, double h, const Vec
       Vec3 rel0 = Vec3::Zero();
       for (int k = 0; k < 4; ++k) rel0 += pair.w[k] * start[k];
       pair.target = std::min(pair.target, std::max(pair.n.dot(rel0), 0.0));
-      result.ccd_impulses += impulse(pair, x0, x1, &pin_work) > 0.0;
+      const bool pushed = impulse(pair, x0, x1, &pin_work) > 0.0;
+      result.ccd_impulses += pushed;
+      if (pushed && pair.normal_impulse > 0.0) notePushed(pair);
     }
   }
 

@@ -77,15 +77,17 @@ void Simulation::resolveSelfCollision(double h, const History& history, std::opt
   // about k dx^2 / 2, which at stiffness k h^2 / m >> 1 exceeds the kinetic
   // energy the inelastic impulse took out, and the energy check rejects the
   // step until halving makes dx small (a twisted cloth: 1439 rejected steps
-  // in 1 s). Solved again with those nodes prescribed where the filter put
-  // them, the neighbours follow inside the implicit solve; the filter then
-  // checks the new answer, and what it moves joins the prescribed set.
+  // in 1 s). Solved again with the pairs the filter pushed held at the gaps
+  // it left them (one row a pair: pair_constraints.hpp), the neighbours
+  // follow inside the implicit solve; the filter then checks the new answer,
+  // and what it pushes joins the held set.
   filterSelfCollision(h, stats, pin_work);
   if (as.value_or(scene_.solver.method) == Method::SymplecticEuler) return;  // explicit: no solve
-  // Prescribed only along the filter's displacement: across it the node
-  // slides with the solve (prescribing all of it lagged a frictionless
-  // layer's slide: 7 mm where 15 mm without the second solve, 45 mm
-  // converged). Nodes the filter leaves near a collider are left to their
+  // Nodes an impact zone moved are held node by node, only along the
+  // filter's displacement: across it the node slides with the solve, as a
+  // held pair slides across its normal (prescribing all of it lagged a
+  // frictionless layer's slide: 7 mm where 15 mm without the second solve,
+  // 45 mm converged). Such nodes near a collider are left to their
   // collider contact, which owns their projection (held whole instead, they
   // could not be let go, and a heap on a table rejected 100 steps for
   // energy). Not every node the solve put in collider contact: a layer lying
@@ -139,6 +141,8 @@ void Simulation::resolveSelfCollision(double h, const History& history, std::opt
     }
     return e;
   };
+  std::vector<PairConstraint>& pairs = pin_ends_self_.pairs;
+  pairs.clear();
   for (int solve = 1; solve < kSelfSolves && stats->ok; ++solve) {
     bool changed = false;
     // A prescribed node whose constraint pulls it back (its reaction points
@@ -147,7 +151,8 @@ void Simulation::resolveSelfCollision(double h, const History& history, std::opt
     // is the solve's own (Stepper::constraintImpulses): read off f(x1, v1)
     // after a linearized step, a stiff twist let go of nodes that still
     // pushed, the filter pushed them back, and its last push stayed unsolved
-    // (stretch 1e8, dt 0.01: 1.7e-6 m, 3.7e-4 J gained at dt/256).
+    // (stretch 1e8, dt 0.01: 1.7e-6 m, 3.7e-4 J gained at dt/256). A held
+    // pair likewise, where its multiplier holds its sides together.
     if (solve > 1) {
       stepper_.constraintImpulses(model_, x_, v_, &force_);
       for (int i = 0; i < n; ++i) {
@@ -156,6 +161,31 @@ void Simulation::resolveSelfCollision(double h, const History& history, std::opt
           changed = true;
         }
       }
+      const PairProjection& held = stepper_.heldPairs();
+      size_t kept = 0;
+      for (size_t k = 0; k < pairs.size(); ++k) {
+        if (held.multiplier(k, force_) < 0.0) {
+          changed = true;
+          continue;
+        }
+        pairs[kept++] = pairs[k];
+      }
+      pairs.resize(kept);
+    }
+    // The pairs the filter pushed apart are held at the gap it left them,
+    // as one row each: both sides take the reaction (pair_constraints.hpp).
+    // Only what impact zones moved is held node by node, along the move.
+    for (const PairConstraint& pushed : self_collision_.pushedPairs()) {
+      PairConstraint pair = pushed;
+      pair.gap = pair.gapAt(x_);
+      auto same = std::find_if(pairs.begin(), pairs.end(), [&](const PairConstraint& p) {
+        return p.node == pair.node;
+      });
+      if (same == pairs.end()) {
+        pairs.push_back(pair);
+      } else {
+        *same = pair;
+      }
     }
     std::fill(shift.begin(), shift.end(), 0.0);
     for (int i = 0; i < n; ++i) {
@@ -163,9 +193,11 @@ void Simulation::resolveSelfCollision(double h, const History& history, std::opt
       const Vec3 moved = x_.segment<3>(3 * i);
       const Vec3 dx = moved - x_pre_self_.segment<3>(3 * i);
       if (dx.squaredNorm() == 0.0) continue;
-      if (nearCollider(i, dx)) continue;
+      const bool zone = self_collision_.movedInZone(i);
+      if (zone && nearCollider(i, dx)) continue;
       shift[i] = dx.norm();
       if (shift[i] > kSettledShift * scene_.self_collision.thickness) changed = true;
+      if (!zone) continue;
       if (!self_held_[i]) {
         self_held_[i] = 1;
         self_direction_[i] = dx.normalized();
@@ -174,7 +206,9 @@ void Simulation::resolveSelfCollision(double h, const History& history, std::opt
     }
     if (!changed) changed = storedEnergy() > kSettledEnergy * energyScale();
     if (!changed) return;
-    pin_ends_self_ = pin_ends_;
+    pin_ends_self_.nodes = pin_ends_.nodes;
+    pin_ends_self_.targets = pin_ends_.targets;
+    pin_ends_self_.reaction_read = pin_ends_.reaction_read;
     pin_ends_self_.directions.assign(pin_ends_.nodes.size(), Vec3::Zero());
     for (int i = 0; i < n; ++i) {
       if (!self_held_[i]) continue;

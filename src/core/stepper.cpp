@@ -74,6 +74,7 @@ void Stepper::setPins(const Model& model, const PinnedEnds& pins) {
       filter_.eliminate(pins.nodes[k]);
     }
   }
+  if (!pins.pairs.empty()) filter_.holdPairs(pins.pairs);
   pins_ = &pins;
   cg_.grid_rows = model.rows;
   cg_.grid_cols = model.cols;
@@ -288,6 +289,9 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
                                   ? ContactSet::FrictionSolve::Descent
                                   : ContactSet::FrictionSolve::Newton);
   }
+  // Held pairs end at their gaps (after the contacts: the change keeps to
+  // the directions each node may move in).
+  if (filter_.holdsPairs()) filter_.pairs().meet(ax_, bh, v1);
   v_start_ = v1;
   // Every iterate's forces come from one evaluation: the assembly gives f at
   // the start, the line search's accepted trial the g of the next iterate.

@@ -50,7 +50,7 @@ bool advance(double h, const VecX& dv, VecX& v, VecX& x) {
 
 bool Stepper::splitStepApplies(double h, const VecX& x, const VecX& v) const {
   if (contact_on_ || !first_pass_ || (repulsion_ && !repulsion_->empty()) ||
-      !filter_.projectedNodes().empty()) {
+      !filter_.projectedNodes().empty() || filter_.holdsPairs()) {
     return false;
   }
   for (size_t k = 0; k < pins_->nodes.size(); ++k) {  // every pin held where it is
@@ -112,7 +112,8 @@ StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v)
   for (size_t k = 0; k < pins_->nodes.size() && !pins_drive && pins_->reaction_read; ++k) {
     pins_drive = pins_->targets[k] != Vec3(x.segment<3>(3 * pins_->nodes[k]));
   }
-  const bool react = contact_on_ || !pins_->directions.empty() || pins_drive;
+  const bool react =
+      contact_on_ || !pins_->directions.empty() || filter_.holdsPairs() || pins_drive;
   if (react) rhs0_ = rhs_;
   if (contact_on_) {
     pins_move = contact_.prescribeChange(x, h, v, pinned_dv_);
@@ -128,6 +129,11 @@ StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v)
     if (n.squaredNorm() > 0.0) dv = n * n.dot(dv);  // the rest is solved for
     pinned_dv_.segment<3>(3 * p) = dv;
     pins_move = pins_move || dv.squaredNorm() > 0.0;
+  }
+  if (filter_.holdsPairs()) {  // held pairs end at their gaps: x + h (v + dv)
+    g_ = x + h * v;
+    filter_.pairs().meet(g_, h, pinned_dv_);
+    pins_move = true;
   }
   pinned_dv_dirty_ = pins_move;  // else every entry written is zero
   if (pins_move) {

@@ -1,0 +1,210 @@
+// Self-contact pairs held at their gap inside a solve (pair_constraints.hpp).
+#include "cloth_sim/pair_constraints.hpp"
+
+#include <algorithm>
+#include <numeric>
+#include <unordered_map>
+
+namespace cloth_sim {
+
+namespace {
+
+/// Rows are kept while each adds a direction of at least this norm to those
+/// before it (of the largest row's norm, about 1: weights of at most 1 on a
+/// unit normal). A row dependent to within it is held by the others to
+/// within that fraction of the motion.
+constexpr double kIndependence = 1e-3;
+
+/// Pivoted (right-looking) Cholesky of the symmetric PSD G: takes the row
+/// whose remaining diagonal, given the rows taken before, is largest, while
+/// it is above `relative` times the first one taken. Output: the rows taken.
+/// (Eigen's LDLT pivots on diagonals not yet updated: it took a repeated
+/// row before an independent one, and the later one was lost.)
+void pivotedRows(Eigen::MatrixXd G, double relative, std::vector<int>* taken) {
+  const Eigen::Index m = G.rows();
+  std::vector<char> done(static_cast<size_t>(m), 0);
+  double first = 0.0;
+  for (Eigen::Index step = 0; step < m; ++step) {
+    Eigen::Index best = -1;
+    for (Eigen::Index r = 0; r < m; ++r) {
+      if (!done[r] && (best < 0 || G(r, r) > G(best, best))) best = r;
+    }
+    const double pivot = G(best, best);
+    if (step == 0) first = pivot;
+    if (!(pivot > relative * first) || !(first > 0.0)) break;
+    done[best] = 1;
+    taken->push_back(static_cast<int>(best));
+    // G <- G - g g^T / pivot on the rows not taken (g: G's column `best`).
+    const Eigen::VectorXd g = G.col(best);
+    for (Eigen::Index c = 0; c < m; ++c) {
+      if (done[c] || g[c] == 0.0) continue;
+      for (Eigen::Index r = 0; r < m; ++r) {
+        if (!done[r]) G(r, c) -= g[r] * g[c] / pivot;
+      }
+    }
+  }
+}
+
+}  // namespace
+
+double PairConstraint::gapAt(const VecX& x) const {
+  Vec3 rel = Vec3::Zero();
+  for (int k = 0; k < 4; ++k) rel += w[k] * x.segment<3>(3 * node[k]);
+  return n.dot(rel);
+}
+
+void PairProjection::assign(std::vector<PairConstraint> pairs) {
+  pairs_ = std::move(pairs);
+  all_rows_.clear();
+  rows_.clear();
+  kept_.clear();
+  gram_.reset();
+}
+
+void PairProjection::restrict(const std::function<Mat3(int)>& projector) {
+  all_rows_.clear();
+  rows_.clear();
+  kept_.clear();
+  gram_.reset();
+  std::vector<Row> all(pairs_.size());
+  double largest = 0.0;
+  for (size_t r = 0; r < pairs_.size(); ++r) {
+    const PairConstraint& p = pairs_[r];
+    Row& row = all[r];
+    for (int k = 0; k < 4; ++k) {
+      const Vec3 c = projector(p.node[k]) * (p.w[k] * p.n);
+      if (c.isZero(0.0)) continue;
+      const auto at = std::find(row.nodes.begin(), row.nodes.end(), p.node[k]);
+      if (at != row.nodes.end()) {
+        row.c[at - row.nodes.begin()] += c;
+      } else {
+        row.nodes.push_back(p.node[k]);
+        row.c.push_back(c);
+      }
+    }
+    double norm2 = 0.0;
+    for (const Vec3& c : row.c) norm2 += c.squaredNorm();
+    largest = std::max(largest, norm2);
+  }
+  if (!(largest > 0.0)) return;  // no row has a free node: nothing held
+  // The independent rows: a pivoted Cholesky of the whole G = C C^T.
+  std::unordered_map<int, std::vector<std::pair<int, Vec3>>> incident;
+  for (size_t r = 0; r < all.size(); ++r) {
+    for (size_t k = 0; k < all[r].nodes.size(); ++k) {
+      incident[all[r].nodes[k]].emplace_back(static_cast<int>(r), all[r].c[k]);
+    }
+  }
+  const Eigen::Index m_all = static_cast<Eigen::Index>(all.size());
+  Eigen::MatrixXd gram_all = Eigen::MatrixXd::Zero(m_all, m_all);
+  for (const auto& [node, list] : incident) {
+    for (const auto& [r, cr] : list) {
+      for (const auto& [s, cs] : list) gram_all(r, s) += cr.dot(cs);
+    }
+  }
+  pivotedRows(gram_all, kIndependence * kIndependence, &kept_);
+  std::sort(kept_.begin(), kept_.end());
+  for (int r : kept_) rows_.push_back(all[r]);
+  all_rows_ = all;
+  if (rows_.empty()) return;
+  // G = C C^T over the kept rows: rows r, s meet where they share a node.
+  std::unordered_map<int, std::vector<std::pair<int, Vec3>>> by_node;
+  for (size_t r = 0; r < rows_.size(); ++r) {
+    for (size_t k = 0; k < rows_[r].nodes.size(); ++k) {
+      by_node[rows_[r].nodes[k]].emplace_back(static_cast<int>(r), rows_[r].c[k]);
+    }
+  }
+  std::vector<Eigen::Triplet<double>> entries;
+  for (const auto& [node, list] : by_node) {
+    for (const auto& [r, cr] : list) {
+      for (const auto& [s, cs] : list) entries.emplace_back(r, s, cr.dot(cs));
+    }
+  }
+  const int m = static_cast<int>(rows_.size());
+  Eigen::SparseMatrix<double> G(m, m);
+  G.setFromTriplets(entries.begin(), entries.end());
+  auto gram = std::make_shared<Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>>>(G);
+  if (gram->info() != Eigen::Success) {  // not expected of independent rows
+    rows_.clear();
+    kept_.clear();
+    return;
+  }
+  gram_ = gram;
+}
+
+void PairProjection::solveGram(Eigen::VectorXd& y) const { y = gram_->solve(y); }
+
+void PairProjection::project(VecX& v) const {
+  if (rows_.empty()) return;
+  Eigen::VectorXd y(static_cast<Eigen::Index>(rows_.size()));
+  for (size_t r = 0; r < rows_.size(); ++r) {
+    double sum = 0.0;
+    for (size_t k = 0; k < rows_[r].nodes.size(); ++k) {
+      sum += rows_[r].c[k].dot(v.segment<3>(3 * rows_[r].nodes[k]));
+    }
+    y[static_cast<Eigen::Index>(r)] = sum;
+  }
+  solveGram(y);
+  for (size_t r = 0; r < rows_.size(); ++r) {
+    for (size_t k = 0; k < rows_[r].nodes.size(); ++k) {
+      v.segment<3>(3 * rows_[r].nodes[k]) -= y[static_cast<Eigen::Index>(r)] * rows_[r].c[k];
+    }
+  }
+}
+
+void PairProjection::projectSplit(double* v, int num_nodes) const {
+  if (rows_.empty()) return;
+  Eigen::VectorXd y(static_cast<Eigen::Index>(rows_.size()));
+  for (size_t r = 0; r < rows_.size(); ++r) {
+    double sum = 0.0;
+    for (size_t k = 0; k < rows_[r].nodes.size(); ++k) {
+      const int i = rows_[r].nodes[k];
+      const Vec3& c = rows_[r].c[k];
+      sum += c[0] * v[i] + c[1] * v[num_nodes + i] + c[2] * v[2 * num_nodes + i];
+    }
+    y[static_cast<Eigen::Index>(r)] = sum;
+  }
+  solveGram(y);
+  for (size_t r = 0; r < rows_.size(); ++r) {
+    const double yr = y[static_cast<Eigen::Index>(r)];
+    for (size_t k = 0; k < rows_[r].nodes.size(); ++k) {
+      const int i = rows_[r].nodes[k];
+      const Vec3& c = rows_[r].c[k];
+      v[i] -= yr * c[0];
+      v[num_nodes + i] -= yr * c[1];
+      v[2 * num_nodes + i] -= yr * c[2];
+    }
+  }
+}
+
+void PairProjection::meet(const VecX& base, double scale, VecX& v) const {
+  if (rows_.empty()) return;
+  Eigen::VectorXd miss(static_cast<Eigen::Index>(rows_.size()));
+  for (size_t r = 0; r < rows_.size(); ++r) {
+    const PairConstraint& p = pairs_[kept_[r]];
+    Vec3 rel = Vec3::Zero();
+    for (int k = 0; k < 4; ++k) {
+      rel += p.w[k] * (base.segment<3>(3 * p.node[k]) + scale * v.segment<3>(3 * p.node[k]));
+    }
+    miss[static_cast<Eigen::Index>(r)] = p.gap - p.n.dot(rel);
+  }
+  // A change C^T y (in the restricted rows' range) moves the gaps by C C^T y.
+  solveGram(miss);
+  for (size_t r = 0; r < rows_.size(); ++r) {
+    for (size_t k = 0; k < rows_[r].nodes.size(); ++k) {
+      v.segment<3>(3 * rows_[r].nodes[k]) += (miss[static_cast<Eigen::Index>(r)] / scale) * rows_[r].c[k];
+    }
+  }
+}
+
+double PairProjection::multiplier(size_t k, const VecX& reaction) const {
+  if (k >= all_rows_.size()) return 0.0;
+  const Row& row = all_rows_[k];
+  double along = 0.0, norm2 = 0.0;
+  for (size_t j = 0; j < row.nodes.size(); ++j) {
+    along += row.c[j].dot(reaction.segment<3>(3 * row.nodes[j]));
+    norm2 += row.c[j].squaredNorm();
+  }
+  return norm2 > 0.0 ? along / norm2 : 0.0;
+}
+
+}  // namespace cloth_sim
