@@ -23,6 +23,7 @@ constexpr double kIndependence = 1e-3;
 void pivotedRows(Eigen::MatrixXd G, double relative, std::vector<int>* taken) {
   const Eigen::Index m = G.rows();
   std::vector<char> done(static_cast<size_t>(m), 0);
+  std::vector<Eigen::Index> nonzero;
   double first = 0.0;
   for (Eigen::Index step = 0; step < m; ++step) {
     Eigen::Index best = -1;
@@ -34,13 +35,15 @@ void pivotedRows(Eigen::MatrixXd G, double relative, std::vector<int>* taken) {
     if (!(pivot > relative * first) || !(first > 0.0)) break;
     done[best] = 1;
     taken->push_back(static_cast<int>(best));
-    // G <- G - g g^T / pivot on the rows not taken (g: G's column `best`).
-    const Eigen::VectorXd g = G.col(best);
-    for (Eigen::Index c = 0; c < m; ++c) {
-      if (done[c] || g[c] == 0.0) continue;
-      for (Eigen::Index r = 0; r < m; ++r) {
-        if (!done[r]) G(r, c) -= g[r] * g[c] / pivot;
-      }
+    // G <- G - g g^T / pivot on the rows not taken (g: G's column `best`),
+    // only where g is not zero: rows of pairs far apart never meet.
+    nonzero.clear();
+    for (Eigen::Index r = 0; r < m; ++r) {
+      if (!done[r] && G(r, best) != 0.0) nonzero.push_back(r);
+    }
+    for (Eigen::Index c : nonzero) {
+      const double gc = G(c, best) / pivot;
+      for (Eigen::Index r : nonzero) G(r, c) -= G(r, best) * gc;
     }
   }
 }

@@ -26,6 +26,14 @@ constexpr double kSettledShift = 0.01;
 /// 8e-6 m moves (0.004 thicknesses) stored 3.5e-4 J, left unsolved, a gain
 /// no halving shrank (the stability map's s1 failed at dt 1e-2 / 2^8).
 constexpr double kSettledEnergy = 1e-7;
+/// At most this many pairs are held as rows (pair_constraints.hpp); a step
+/// whose filter pushes more holds every pushed node on its own instead, as
+/// before rows existed. Rows cost a pivoted Cholesky of their Gram matrix
+/// and a triangular solve each per factor: a heap of layers pushed up to
+/// 1644 pairs at once, and under bdf2 took 104-131 ms a step where 20
+/// (the heap, 1 s: 128 rows at most, 52 ms; 64, 38 ms; 32, 21 ms, and the
+/// fling at stretch 1e8 still recovers).
+constexpr size_t kMaxHeldPairs = 32;
 
 using Clock = std::chrono::steady_clock;
 
@@ -143,6 +151,7 @@ void Simulation::resolveSelfCollision(double h, const History& history, std::opt
   };
   std::vector<PairConstraint>& pairs = pin_ends_self_.pairs;
   pairs.clear();
+  bool node_by_node = false;  // too many pairs: every pushed node held on its own
   for (int solve = 1; solve < kSelfSolves && stats->ok; ++solve) {
     bool changed = false;
     // A prescribed node whose constraint pulls it back (its reaction points
@@ -187,13 +196,15 @@ void Simulation::resolveSelfCollision(double h, const History& history, std::opt
         *same = pair;
       }
     }
+    if (pairs.size() > kMaxHeldPairs) node_by_node = true;
+    if (node_by_node) pairs.clear();
     std::fill(shift.begin(), shift.end(), 0.0);
     for (int i = 0; i < n; ++i) {
       if (self_pinned_[i]) continue;
       const Vec3 moved = x_.segment<3>(3 * i);
       const Vec3 dx = moved - x_pre_self_.segment<3>(3 * i);
       if (dx.squaredNorm() == 0.0) continue;
-      const bool zone = self_collision_.movedInZone(i);
+      const bool zone = node_by_node || self_collision_.movedInZone(i);
       if (zone && nearCollider(i, dx)) continue;
       shift[i] = dx.norm();
       if (shift[i] > kSettledShift * scene_.self_collision.thickness) changed = true;
