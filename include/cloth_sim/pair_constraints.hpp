@@ -35,20 +35,15 @@
 #include <memory>
 #include <vector>
 
+#include "cloth_sim/pair_gap.hpp"
 #include "cloth_sim/types.hpp"
 
 namespace cloth_sim {
 
-/// One pair: the relative position sum_k w_k x_k of four nodes (a point less
-/// the triangle's closest point, or one edge's closest point less the
-/// other's) held at `gap` along the unit normal n.
-struct PairConstraint {
-  std::array<int, 4> node{};
-  std::array<double, 4> w{};
-  Vec3 n = Vec3::UnitZ();
-  double gap = 0.0;
-  /// n . sum_k w_k x_k (x: 3n positions)
-  double gapAt(const VecX& x) const;
+/// One pair (PairGap: four nodes' relative position along n) held with its
+/// gap at `target`.
+struct PairConstraint : PairGap {
+  double target = 0.0;
 };
 
 class PairProjection {
@@ -68,7 +63,7 @@ class PairProjection {
   /// The same for v split by component (v[c * num_nodes + i]).
   void projectSplit(double* v, int num_nodes) const;
   /// Adds to v (3n velocities) the smallest change, in the rows' range, after
-  /// which each pair's gap at the positions base + scale v is its `gap`
+  /// which each pair's gap at the positions base + scale v is its `target`
   /// (least squares where the rows are dependent). Inputs: base (3n), scale > 0.
   void meet(const VecX& base, double scale, VecX& v) const;
   /// The multiplier of pair k in a reaction r (3n, what the constraints

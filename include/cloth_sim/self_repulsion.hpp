@@ -23,16 +23,14 @@
 #include <array>
 #include <vector>
 
+#include "cloth_sim/pair_gap.hpp"
 #include "cloth_sim/system_matrix.hpp"
 #include "cloth_sim/types.hpp"
 
 namespace cloth_sim {
 
-/// One repulsion term: gap g(x) = n . sum_k w[k] x_{node[k]}.
-struct RepulsionTerm {
-  std::array<int, 4> node{};
-  std::array<double, 4> w{};
-  Vec3 n = Vec3::UnitZ();
+/// One repulsion term: gap g(x) = n . sum_k w[k] x_{node[k]} (PairGap).
+struct RepulsionTerm : PairGap {
   double stiffness = 0.0;  ///< k (N/m)
   double reach = 0.0;      ///< the gap below which the term pushes (m)
   /// mu lambda: the friction coefficient times the normal force at the
@@ -41,11 +39,6 @@ struct RepulsionTerm {
   /// In a linearized step's system (addToSystem with `linearized`): its
   /// quadratic is on, unclamped. Starts as g(x0) < reach; updateActiveSet.
   bool active = true;
-  double gap(const VecX& x) const {
-    double g = 0.0;
-    for (int k = 0; k < 4; ++k) g += w[k] * n.dot(x.segment<3>(3 * node[k]));
-    return g;
-  }
   /// The tangential part of sum_k w_k v_k.
   Vec3 slip(const VecX& v) const {
     Vec3 u = Vec3::Zero();

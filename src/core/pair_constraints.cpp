@@ -50,12 +50,6 @@ void pivotedRows(Eigen::MatrixXd G, double relative, std::vector<int>* taken) {
 
 }  // namespace
 
-double PairConstraint::gapAt(const VecX& x) const {
-  Vec3 rel = Vec3::Zero();
-  for (int k = 0; k < 4; ++k) rel += w[k] * x.segment<3>(3 * node[k]);
-  return n.dot(rel);
-}
-
 void PairProjection::assign(std::vector<PairConstraint> pairs) {
   pairs_ = std::move(pairs);
   all_rows_.clear();
@@ -188,7 +182,7 @@ void PairProjection::meet(const VecX& base, double scale, VecX& v) const {
     for (int k = 0; k < 4; ++k) {
       rel += p.w[k] * (base.segment<3>(3 * p.node[k]) + scale * v.segment<3>(3 * p.node[k]));
     }
-    miss[static_cast<Eigen::Index>(r)] = p.gap - p.n.dot(rel);
+    miss[static_cast<Eigen::Index>(r)] = p.target - p.n.dot(rel);
   }
   // A change C^T y (in the restricted rows' range) moves the gaps by C C^T y.
   solveGram(miss);

@@ -186,7 +186,7 @@ void Simulation::resolveSelfCollision(double h, const History& history, std::opt
     // Only what impact zones moved is held node by node, along the move.
     for (const PairConstraint& pushed : self_collision_.pushedPairs()) {
       PairConstraint pair = pushed;
-      pair.gap = pair.gapAt(x_);
+      pair.target = pair.gap(x_);
       auto same = std::find_if(pairs.begin(), pairs.end(), [&](const PairConstraint& p) {
         return p.node == pair.node;
       });

@@ -33,17 +33,17 @@ std::vector<PairConstraint> somePairs() {
   pt.node = {0, 1, 2, 3};
   pt.w = {1.0, -0.2, -0.5, -0.3};
   pt.n = Vec3(0.1, 0.2, 1.0).normalized();
-  pt.gap = 0.002;
+  pt.target = 0.002;
   PairConstraint ee;
   ee.node = {1, 4, 5, 6};
   ee.w = {0.6, 0.4, -0.7, -0.3};
   ee.n = Vec3(-0.3, 1.0, 0.2).normalized();
-  ee.gap = 0.001;
+  ee.target = 0.001;
   PairConstraint far;  // a group of its own
   far.node = {8, 9, 10, 11};
   far.w = {1.0, -0.1, -0.1, -0.8};
   far.n = Vec3(1.0, 0.0, 0.0);
-  far.gap = 0.0;
+  far.target = 0.0;
   return {pt, ee, pt, far};
 }
 
@@ -105,7 +105,7 @@ TEST(PairProjection, MeetPutsEveryPairAtItsGapWithTheSmallestAllowedChange) {
   const double scale = 1e-3;
   filter.pairs().meet(base, scale, v);
   const VecX end = base + scale * v;
-  for (const PairConstraint& p : somePairs()) EXPECT_NEAR(p.gapAt(end), p.gap, 1e-14);
+  for (const PairConstraint& p : somePairs()) EXPECT_NEAR(p.gap(end), p.target, 1e-14);
   // The pinned node's velocity is not touched, nor nodes outside every pair.
   EXPECT_EQ((v - before).segment<3>(6).norm(), 0.0);
   EXPECT_EQ((v - before).segment<3>(3 * 7).norm(), 0.0);
