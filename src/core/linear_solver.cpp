@@ -219,9 +219,7 @@ double applyPreconditioner(Preconditioner kind, CgWorkspace& ws, const Constrain
 /// (CgWorkspace::pair_y): without, B ignores the rows, and CG on the
 /// projected system took up to 8 400 iterations a step (a fling at stretch
 /// 1e8 under bdf2; 1 300 with: 3.2 ms a step where 4.0). One solve a row per
-/// factor and set of rows, so only up to kMaxCorrectedPairs rows (a folded
-/// cloth lying on itself holds hundreds: there B alone).
-constexpr size_t kMaxCorrectedPairs = 1024;
+/// factor and set of rows (the simulation holds at most 32 rows a step).
 
 void correctForPairs(const ConstraintFilter& filter, int dim, CgWorkspace& ws) {
   ws.pairs_corrected = false;
@@ -239,7 +237,7 @@ void correctForPairs(const ConstraintFilter& filter, int dim, CgWorkspace& ws) {
   for (const PairProjection::Row& row : pairs.rows()) {
     if (!row.nodes.empty()) rows.push_back(&row);
   }
-  if (rows.empty() || rows.size() > kMaxCorrectedPairs) return;
+  if (rows.empty()) return;
   const Eigen::Index m = static_cast<Eigen::Index>(rows.size());
   ws.pair_y.resize(dim, m);
   VecX c(dim), y(dim);
@@ -251,7 +249,7 @@ void correctForPairs(const ConstraintFilter& filter, int dim, CgWorkspace& ws) {
     filter.applyNodes(y);  // the factor's answer on the nodes' ranges
     ws.pair_y.col(r) = y;
   }
-  // C Y = C B C^T, regularised as G is (nearly dependent rows).
+  // C Y = C B C^T, regularised against round-off (the rows are independent).
   Eigen::MatrixXd schur(m, m);
   double largest = 0.0;
   for (Eigen::Index r = 0; r < m; ++r) {
