@@ -29,6 +29,19 @@ class BlockLdlt {
   bool factorize(const Eigen::SparseMatrix<double>& lower);
   /// z = A^-1 r (needs a successful factorize). z may not alias r.
   void solve(const VecX& r, VecX& z) const;
+  /// solve's two halves: y = L^-1 P r (one 3-vector per factor position),
+  /// then z = P^T L^-T D^-1 y (y overwritten), for a correction between them.
+  void forwardSolve(const VecX& r, std::vector<Vec3>& y) const;
+  void backwardSolve(std::vector<Vec3>& y, VecX& z) const;
+  /// w = L^-1 P c for a c nonzero only on `nodes` (c[k] at nodes[k]; a
+  /// repeated node adds): a forward solve over the nodes' paths up the
+  /// elimination tree, where alone w can be nonzero (L's column j is nonzero
+  /// only at ancestors of j). Output: those positions, ascending, and w there.
+  void forwardSolveSparse(const std::vector<int>& nodes, const std::vector<Vec3>& c,
+                          std::vector<int>* positions, std::vector<Vec3>* w) const;
+  int position(int node) const { return perm_[node]; }
+  /// D's block at a factor position, inverted.
+  const Mat3& dInverse(int position) const { return d_inverse_[position]; }
   /// Blocks of L below the diagonal (for tests and the docs' fill figures).
   int lowerBlocks() const { return static_cast<int>(l_rows_.size()); }
   int numNodes() const { return n_; }
@@ -53,6 +66,8 @@ class BlockLdlt {
   std::vector<int> l_fill_, pattern_, mark_;
   std::vector<Mat3> row_;
   mutable std::vector<Vec3> work_;
+  mutable std::vector<Vec3> sparse_work_;  ///< zero outside a forwardSolveSparse
+  mutable std::vector<char> sparse_seen_;
 };
 
 }  // namespace cloth_sim

@@ -47,6 +47,7 @@ class CholeskyFactor {
   bool factorize(const SystemMatrix& A, const std::vector<Spring>& springs,
                  const ConstraintFilter& filter, int grid_cols);
   void solve(const VecX& r, VecX& z) const { ldlt_.solve(r, z); }
+  const BlockLdlt& ldlt() const { return ldlt_; }
   /// A factor of a recent matrix is still a very good preconditioner: it is
   /// reused until a solve needs more than this many CG iterations.
   static constexpr int kRefactorIterations = 10;
@@ -114,11 +115,17 @@ struct CgWorkspace {
   bool reroute_bends = false;
   int plain_factors = 0;
   /// With held pairs (ConstraintFilter::holdPairs) the Cholesky solve is made
-  /// exact on their null space too (range-space method): Y = B C^T for the
-  /// factor B and the restricted rows C, and C Y factored; made again when
-  /// the factor or the rows change (their counts below).
-  Eigen::MatrixXd pair_y;
+  /// exact on their null space too (range-space method). With B = P^T L^-T
+  /// D^-1 L^-1 P the factor and C the restricted rows: W = L^-1 P C^T, whose
+  /// column r is nonzero only on row r's paths up the elimination tree
+  /// (entries [pair_start[r], pair_start[r+1]) at factor positions pair_pos,
+  /// W's 3-vectors pair_wv and D^-1 W's pair_dwv), and C B C^T = W^T D^-1 W
+  /// factored; made again when the factor or the rows change (counts below).
+  std::vector<int> pair_start, pair_pos;
+  std::vector<Vec3> pair_wv, pair_dwv;
   Eigen::LDLT<Eigen::MatrixXd> pair_schur;
+  std::vector<Vec3> pair_half;  ///< L^-1 P r inside a corrected solve
+  Eigen::VectorXd pair_s;
   bool pairs_corrected = false;
   long pair_factor = -1;  ///< CholeskyFactor::serial
   long pair_generation = -1;

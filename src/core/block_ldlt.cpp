@@ -162,20 +162,56 @@ bool BlockLdlt::factorize(const Eigen::SparseMatrix<double>& lower) {
 }
 
 void BlockLdlt::solve(const VecX& r, VecX& z) const {
+  forwardSolve(r, work_);
+  backwardSolve(work_, z);
+}
+
+void BlockLdlt::forwardSolve(const VecX& r, std::vector<Vec3>& y) const {
   const int n = n_;
-  for (int k = 0; k < n; ++k) work_[k] = r.segment<3>(3 * iperm_[k]);
+  y.resize(n);
+  for (int k = 0; k < n; ++k) y[k] = r.segment<3>(3 * iperm_[k]);
   for (int j = 0; j < n; ++j) {  // L y = P r
-    const Vec3 y = work_[j];
-    for (int p = l_start_[j]; p < l_start_[j + 1]; ++p) work_[l_rows_[p]].noalias() -= l_blocks_[p] * y;
+    const Vec3 yj = y[j];
+    for (int p = l_start_[j]; p < l_start_[j + 1]; ++p) y[l_rows_[p]].noalias() -= l_blocks_[p] * yj;
   }
-  for (int j = 0; j < n; ++j) work_[j] = d_inverse_[j] * work_[j];
+}
+
+void BlockLdlt::backwardSolve(std::vector<Vec3>& y, VecX& z) const {
+  const int n = n_;
+  for (int j = 0; j < n; ++j) y[j] = d_inverse_[j] * y[j];
   for (int j = n - 1; j >= 0; --j) {  // L^T x = D^-1 y
-    Vec3 x = work_[j];
-    for (int p = l_start_[j]; p < l_start_[j + 1]; ++p) x.noalias() -= l_blocks_[p].transpose() * work_[l_rows_[p]];
-    work_[j] = x;
+    Vec3 x = y[j];
+    for (int p = l_start_[j]; p < l_start_[j + 1]; ++p) x.noalias() -= l_blocks_[p].transpose() * y[l_rows_[p]];
+    y[j] = x;
   }
   z.resize(3 * n);
-  for (int k = 0; k < n; ++k) z.segment<3>(3 * iperm_[k]) = work_[k];
+  for (int k = 0; k < n; ++k) z.segment<3>(3 * iperm_[k]) = y[k];
+}
+
+void BlockLdlt::forwardSolveSparse(const std::vector<int>& nodes, const std::vector<Vec3>& c,
+                                   std::vector<int>* positions, std::vector<Vec3>* w) const {
+  if (sparse_work_.size() != static_cast<size_t>(n_)) {
+    sparse_work_.assign(n_, Vec3::Zero());
+    sparse_seen_.assign(n_, 0);
+  }
+  positions->clear();
+  for (size_t k = 0; k < nodes.size(); ++k) {
+    sparse_work_[perm_[nodes[k]]] += c[k];
+    for (int j = perm_[nodes[k]]; j != -1 && !sparse_seen_[j]; j = parent_[j]) {
+      sparse_seen_[j] = 1;
+      positions->push_back(j);
+    }
+  }
+  std::sort(positions->begin(), positions->end());
+  w->resize(positions->size());
+  for (size_t a = 0; a < positions->size(); ++a) {
+    const int j = (*positions)[a];
+    const Vec3 wj = sparse_work_[j];
+    for (int p = l_start_[j]; p < l_start_[j + 1]; ++p) sparse_work_[l_rows_[p]].noalias() -= l_blocks_[p] * wj;
+    (*w)[a] = wj;
+    sparse_work_[j].setZero();
+    sparse_seen_[j] = 0;
+  }
 }
 
 }  // namespace cloth_sim

@@ -1,6 +1,8 @@
 #include "cloth_sim/linear_solver.hpp"
 
 #include <algorithm>
+#include <cstdio>
+#include <cstdlib>
 #include <cmath>
 #include <iterator>
 #include <limits>
@@ -204,10 +206,29 @@ double applyPreconditioner(Preconditioner kind, CgWorkspace& ws, const Constrain
   if (kind == Preconditioner::Multigrid) {
     ws.multigrid->apply(ws.joined_r, ws.joined_z);  // pinned entries come back zero
   } else {
-    ws.cholesky->solve(ws.joined_r, ws.joined_z);
-    if (ws.pairs_corrected) {  // z -= Y (C Y)^+ C z: exact for the held pairs too
-      const Eigen::VectorXd cz = ws.pair_y.transpose() * ws.joined_r;  // C B r = Y^T r
-      ws.joined_z.noalias() -= ws.pair_y * ws.pair_schur.solve(cz);
+    if (ws.pairs_corrected) {
+      // z = B (r - C^T s), s = (C B C^T)^-1 C B r: with y = L^-1 P r, C B r =
+      // W^T D^-1 y, and the backward half solves for y - W s.
+      const BlockLdlt& factor = ws.cholesky->ldlt();
+      factor.forwardSolve(ws.joined_r, ws.pair_half);
+      const Eigen::Index m = ws.pair_s.size();
+      for (Eigen::Index k = 0; k < m; ++k) {
+        double t = 0.0;
+        for (int e = ws.pair_start[k]; e < ws.pair_start[k + 1]; ++e) {
+          t += ws.pair_dwv[e].dot(ws.pair_half[ws.pair_pos[e]]);
+        }
+        ws.pair_s[k] = t;
+      }
+      ws.pair_s = ws.pair_schur.solve(ws.pair_s);
+      for (Eigen::Index k = 0; k < m; ++k) {
+        const double sr = ws.pair_s[k];
+        for (int e = ws.pair_start[k]; e < ws.pair_start[k + 1]; ++e) {
+          ws.pair_half[ws.pair_pos[e]].noalias() -= sr * ws.pair_wv[e];
+        }
+      }
+      factor.backwardSolve(ws.pair_half, ws.joined_z);
+    } else {
+      ws.cholesky->solve(ws.joined_r, ws.joined_z);
     }
   }
   sweeps::splitComponents(ws.joined_z, z.data());
@@ -216,60 +237,69 @@ double applyPreconditioner(Preconditioner kind, CgWorkspace& ws, const Constrain
 }
 
 /// The Cholesky preconditioner B made exact on the held pairs' null space
-/// (CgWorkspace::pair_y): without, B ignores the rows, and CG on the
+/// (CgWorkspace::pair_wv): without, B ignores the rows, and CG on the
 /// projected system took up to 8 400 iterations a step (a fling at stretch
-/// 1e8 under bdf2; 1 300 with: 3.2 ms a step where 4.0). One solve a row per
-/// factor and set of rows (the simulation holds at most 32 rows a step).
+/// 1e8 under bdf2; 1 300 with: 3.2 ms a step where 4.0). Made per factor and
+/// set of rows by a forward solve over each row's paths up the elimination
+/// tree (a third of the tree on the heap), not one whole solve a row: those
+/// took 48 % of the heap's time when every pushed pair was held.
 
 void correctForPairs(const ConstraintFilter& filter, int dim, CgWorkspace& ws) {
   ws.pairs_corrected = false;
   if (!filter.holdsPairs()) return;
-  if (ws.pair_factor == ws.cholesky->serial() && ws.pair_generation == filter.pairsGeneration() &&
-      ws.pair_y.rows() == dim) {
-    ws.pairs_corrected = ws.pair_y.cols() > 0;
+  if (ws.pair_factor == ws.cholesky->serial() && ws.pair_generation == filter.pairsGeneration()) {
+    ws.pairs_corrected = ws.pair_s.size() > 0;
     return;
   }
   ws.pair_factor = ws.cholesky->serial();
   ws.pair_generation = filter.pairsGeneration();
-  ws.pair_y.resize(dim, 0);
-  const PairProjection& pairs = filter.pairs();
-  std::vector<const PairProjection::Row*> rows;
-  for (const PairProjection::Row& row : pairs.rows()) {
-    if (!row.nodes.empty()) rows.push_back(&row);
+  ws.pair_s.resize(0);
+  ws.pair_start.assign(1, 0);
+  ws.pair_pos.clear();
+  ws.pair_wv.clear();
+  ws.pair_dwv.clear();
+  const BlockLdlt& factor = ws.cholesky->ldlt();
+  std::vector<int> positions;
+  std::vector<Vec3> w;
+  for (const PairProjection::Row& row : filter.pairs().rows()) {
+    if (row.nodes.empty()) continue;
+    factor.forwardSolveSparse(row.nodes, row.c, &positions, &w);
+    ws.pair_pos.insert(ws.pair_pos.end(), positions.begin(), positions.end());
+    ws.pair_wv.insert(ws.pair_wv.end(), w.begin(), w.end());
+    for (size_t a = 0; a < positions.size(); ++a) ws.pair_dwv.push_back(factor.dInverse(positions[a]) * w[a]);
+    ws.pair_start.push_back(static_cast<int>(ws.pair_pos.size()));
   }
-  if (rows.empty()) return;
-  const Eigen::Index m = static_cast<Eigen::Index>(rows.size());
-  ws.pair_y.resize(dim, m);
-  VecX c(dim), y(dim);
+  const Eigen::Index m = static_cast<Eigen::Index>(ws.pair_start.size()) - 1;
+  if (m == 0) return;
+  // C B C^T = W^T D^-1 W, summed position by position over the rows there.
+  std::vector<std::vector<int>> at(static_cast<size_t>(dim / 3));
   for (Eigen::Index r = 0; r < m; ++r) {
-    c.setZero();
-    const PairProjection::Row& row = *rows[r];
-    for (size_t k = 0; k < row.nodes.size(); ++k) c.segment<3>(3 * row.nodes[k]) += row.c[k];
-    ws.cholesky->solve(c, y);
-    filter.applyNodes(y);  // the factor's answer on the nodes' ranges
-    ws.pair_y.col(r) = y;
+    for (int e = ws.pair_start[r]; e < ws.pair_start[r + 1]; ++e) at[ws.pair_pos[e]].push_back(e);
   }
-  // C Y = C B C^T, regularised against round-off (the rows are independent).
-  Eigen::MatrixXd schur(m, m);
-  double largest = 0.0;
+  std::vector<int> row_of(ws.pair_pos.size());
   for (Eigen::Index r = 0; r < m; ++r) {
-    const PairProjection::Row& row = *rows[r];
-    for (Eigen::Index s = 0; s < m; ++s) {
-      double sum = 0.0;
-      for (size_t k = 0; k < row.nodes.size(); ++k) {
-        sum += row.c[k].dot(ws.pair_y.col(s).segment<3>(3 * row.nodes[k]));
-      }
-      schur(r, s) = sum;
+    for (int e = ws.pair_start[r]; e < ws.pair_start[r + 1]; ++e) row_of[e] = static_cast<int>(r);
+  }
+  Eigen::MatrixXd schur = Eigen::MatrixXd::Zero(m, m);
+  for (const std::vector<int>& entries : at) {
+    for (size_t a = 0; a < entries.size(); ++a) {
+      const Vec3& dw = ws.pair_dwv[entries[a]];
+      for (size_t b = 0; b <= a; ++b) schur(row_of[entries[a]], row_of[entries[b]]) += ws.pair_wv[entries[b]].dot(dw);
     }
-    largest = std::max(largest, schur(r, r));
   }
+  // Entries within a position come in row order: the lower triangle is filled.
+  for (Eigen::Index c = 1; c < m; ++c) {
+    for (Eigen::Index r = 0; r < c; ++r) schur(r, c) = schur(c, r);
+  }
+  // Regularised against round-off (the rows are independent).
+  const double largest = schur.diagonal().maxCoeff();
   schur.diagonal().array() += 1e-9 * largest;
   ws.pair_schur.compute(schur);
   // Positive where B is: an indefinite factor (BlockLdlt factors on through
   // indefinite pivots) gives no correction (z was garbage, CG diverged).
   ws.pairs_corrected = ws.pair_schur.info() == Eigen::Success &&
                        (ws.pair_schur.vectorD().array() > 0.0).all();
-  if (!ws.pairs_corrected) ws.pair_y.resize(dim, 0);
+  if (ws.pairs_corrected) ws.pair_s.resize(m);
 }
 
 }  // namespace

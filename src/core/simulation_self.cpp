@@ -29,10 +29,13 @@ constexpr double kSettledEnergy = 1e-7;
 /// At most this many pairs are held as rows (pair_constraints.hpp); a step
 /// whose filter pushes more holds every pushed node on its own instead, as
 /// before rows existed. Rows cost a pivoted Cholesky of their Gram matrix
-/// and a triangular solve each per factor: a heap of layers pushed up to
-/// 1644 pairs at once, and under bdf2 took 104-131 ms a step where 20
-/// (the heap, 1 s: 128 rows at most, 52 ms; 64, 38 ms; 32, 21 ms, and the
-/// fling at stretch 1e8 still recovers).
+/// and the preconditioner's correction per factor: a heap of layers pushes
+/// up to 376 pairs at once (229 independent). With every pair held, the heap
+/// under bdf2 took 104-131 ms a step where 20 (session 41); with the
+/// correction's sparse forward solves still 1.5-1.7x the CPU time of this
+/// limit (8.0 s against 5.2 for 1 s), its pivoted Cholesky now the largest
+/// part. A limit of 128 did worse than either in a trial (steps switching
+/// between rows and nodes: 120 rejected attempts where 37 and 35).
 constexpr size_t kMaxHeldPairs = 32;
 
 using Clock = std::chrono::steady_clock;
@@ -161,7 +164,14 @@ void Simulation::resolveSelfCollision(double h, const History& history, std::opt
     // after a linearized step, a stiff twist let go of nodes that still
     // pushed, the filter pushed them back, and its last push stayed unsolved
     // (stretch 1e8, dt 0.01: 1.7e-6 m, 3.7e-4 J gained at dt/256). A held
-    // pair likewise, where its multiplier holds its sides together.
+    // pair likewise, where its multiplier holds its sides together, but not
+    // before the last solve: no solve follows it, so the filter's push of a
+    // pair let go there would stay unsolved. A stiff twist's layers near its
+    // pins were let go, pushed and held again at every pass, and the last
+    // push moved a node 0.13 mm into springs of stretch 1e7 (0.2 J gained at
+    // dt/256: the stability map's one failure). Held through the last solve,
+    // such a pair at most holds its sides together for that step.
+    const bool last = solve == kSelfSolves - 1;
     if (solve > 1) {
       stepper_.constraintImpulses(model_, x_, v_, &force_);
       for (int i = 0; i < n; ++i) {
@@ -173,7 +183,7 @@ void Simulation::resolveSelfCollision(double h, const History& history, std::opt
       const PairProjection& held = stepper_.heldPairs();
       size_t kept = 0;
       for (size_t k = 0; k < pairs.size(); ++k) {
-        if (held.multiplier(k, force_) < 0.0) {
+        if (!last && held.multiplier(k, force_) < 0.0) {
           changed = true;
           continue;
         }

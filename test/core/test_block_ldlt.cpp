@@ -4,6 +4,7 @@
 
 #include <Eigen/Dense>
 #include <Eigen/SparseCholesky>
+#include <algorithm>
 #include <limits>
 #include <random>
 #include <utility>
@@ -107,6 +108,48 @@ TEST(BlockLdlt, SolvesAClothLikeSystemToRoundOff) {
   ldlt.solve(b, z);
   EXPECT_LT(relativeError(z, s.dense.llt().solve(b)), 1e-12);
   EXPECT_LT(backwardError(s.dense, z, b), 1e-15);
+}
+
+// The held pairs' correction (linear_solver.cpp) solves L w = P c over a
+// row's paths up the elimination tree only and splits the solve around its
+// correction: both must match the whole solve.
+TEST(BlockLdlt, SparseForwardSolveMatchesTheWholeOne) {
+  const BlockSystem s = clothLike(12, 10, 40, 3, 1e-2);
+  BlockLdlt ldlt;
+  ldlt.analyzePattern(s.lower);
+  ASSERT_TRUE(ldlt.factorize(s.lower));
+  const int n = ldlt.numNodes();
+  // A row on four nodes, one repeated (its entries add), as a pair's.
+  const std::vector<int> nodes = {5, 17, 64, 100, 17};
+  std::vector<Vec3> c;
+  VecX dense = VecX::Zero(3 * n);
+  for (int i : nodes) {
+    c.push_back(Vec3::Random());
+    dense.segment<3>(3 * i) += c.back();
+  }
+  std::vector<Vec3> whole;
+  ldlt.forwardSolve(dense, whole);
+  for (int pass = 0; pass < 2; ++pass) {  // the second: its scratch is clean again
+    std::vector<int> positions;
+    std::vector<Vec3> w;
+    ldlt.forwardSolveSparse(nodes, c, &positions, &w);
+    ASSERT_EQ(positions.size(), w.size());
+    EXPECT_LT(positions.size(), static_cast<size_t>(n) / 2);  // the point of it
+    EXPECT_TRUE(std::is_sorted(positions.begin(), positions.end()));
+    std::vector<char> reached(n, 0);
+    for (size_t a = 0; a < positions.size(); ++a) {
+      reached[positions[a]] = 1;
+      EXPECT_LT((w[a] - whole[positions[a]]).norm(), 1e-14 * (1.0 + whole[positions[a]].norm()));
+    }
+    for (int k = 0; k < n; ++k) {
+      if (!reached[k]) EXPECT_EQ(whole[k].norm(), 0.0) << "position " << k << " outside the paths";
+    }
+  }
+  // forwardSolve then backwardSolve is solve.
+  VecX z_whole, z_split;
+  ldlt.solve(dense, z_whole);
+  ldlt.backwardSolve(whole, z_split);
+  EXPECT_EQ((z_whole - z_split).norm(), 0.0);
 }
 
 TEST(BlockLdlt, RefactorsNewValuesOnTheSamePattern) {
