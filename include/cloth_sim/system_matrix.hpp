@@ -72,6 +72,10 @@ class SystemMatrix {
     changed();
     return coefficients_[direction];
   }
+  /// Read-only: direction `direction`'s coupling arrays (c, w only while
+  /// hasDampingAxes()).
+  const Coefficients& coefficientsAt(int direction) const { return coefficients_[direction]; }
+  bool hasDampingAxes() const { return has_damping_axes_; }
   /// Direction `direction`'s float copies of iso, axis and u0..u2 (n apart),
   /// for the assembly's sweep to write beside the double ones where the
   /// matrix before the last reset() took float products: the float product
