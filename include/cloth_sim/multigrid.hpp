@@ -195,6 +195,9 @@ class MultigridPreconditioner {
     // in [interp_begin[i], interp_begin[i + 1]).
     std::vector<int> interp_begin, interp_node;
     std::vector<double> interp_weight;
+    // The same by the coarse nodes (P^T's rows), for the restriction.
+    std::vector<int> restrict_begin, restrict_node;
+    std::vector<double> restrict_weight;
     // Galerkin refill of the next coarser matrix, in the order galerkin()
     // walks this level's blocks and interpolation pairs: the coarse block each
     // product adds to (index < coarse num_nodes: a node block; else lower
