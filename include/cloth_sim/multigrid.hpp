@@ -173,6 +173,9 @@ class MultigridPreconditioner {
   /// z = B r, B the V-cycle (SPD on the free DOFs); pinned entries of z are
   /// zero and pinned entries of r are ignored.
   void apply(const VecX& r, VecX& z);
+  /// The same on vectors split by component (r[c * n + i], CG's layout):
+  /// the split and join ride on the copies in and out of the V-cycle.
+  void applySplit(const double* r, double* z);
 
   int numLevels() const { return static_cast<int>(levels_.size()); }
   /// Grid size of a level (0 = the cloth).

@@ -200,7 +200,12 @@ double applyPreconditioner(Preconditioner kind, CgWorkspace& ws, const Constrain
     filter.applySplit(z.data());
     return rz;
   }
-  // Multigrid and Cholesky work on unsplit vectors (their cost dwarfs the copies).
+  if (kind == Preconditioner::Multigrid) {
+    ws.multigrid->applySplit(r.data(), z.data());  // pinned entries come back zero
+    filter.applySplit(z.data());
+    return cg_kernels::dot(3 * n, r.data(), z.data());
+  }
+  // Cholesky works on unsplit vectors (its cost dwarfs the copies).
   ws.joined_r.resize(3 * n);
   sweeps::joinComponents(r.data(), n, ws.joined_r.data());
   if (kind == Preconditioner::Multigrid) {

@@ -679,6 +679,22 @@ void MultigridPreconditioner::constrain(const ConstraintFilter& filter) {
   }
 }
 
+void MultigridPreconditioner::applySplit(const double* r, double* z) {
+  if (!ready_) throw std::logic_error("multigrid preconditioner applied before a successful setup");
+  Level& finest = levels_.front();
+  const int n = finest.num_nodes;
+  double* b = finest.b.data();
+  for (int i = 0; i < n; ++i) {
+    const bool f = finest.free[i];
+    for (int c = 0; c < 3; ++c) b[3 * i + c] = f ? r[c * n + i] : 0.0;
+  }
+  vcycle(0);
+  const double* x = finest.x.data();
+  for (int c = 0; c < 3; ++c) {
+    for (int i = 0; i < n; ++i) z[c * n + i] = x[3 * i + c];
+  }
+}
+
 void MultigridPreconditioner::apply(const VecX& r, VecX& z) {
   if (!ready_) throw std::logic_error("multigrid preconditioner applied before a successful setup");
   Level& finest = levels_.front();
