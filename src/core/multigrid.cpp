@@ -86,19 +86,40 @@ int findColumn(const std::vector<int>& begin, const std::vector<int>& column, in
 // instruction count (hang64: the V-cycle is ~40 % of the step).
 
 /// One Gauss-Seidel relaxation of rows i in [first, last) stepping by `step`
-/// (+1 forward, -1 backward): row i solved from s = b_i + r_i minus its
+/// (+1 forward, -1 backward; relaxRows picks the direction): row i solved from s = b_i + r_i minus its
 /// lower blocks' x_j (j < i), then x_i's coupling scattered into r_j, so r
 /// gathers -sum_{j > i} A_ij x_j for the rows still to come. x_i = inv_i s.
-CLOTH_SIM_VECTORISED
-void relaxRows(int first, int last, int step, const int* __restrict begin,
-               const int* __restrict column, const SymBlock* __restrict lower,
-               const SymBlock* __restrict inv, const double* __restrict b,
-               double* __restrict x, double* __restrict r) {
+///
+/// The forward sweep (from x = 0) needs r neither read nor zeroed first:
+/// nothing has been scattered into r_i when row i comes (its upper
+/// neighbours come later), so row i starts from b_i and sets r_i to zero
+/// for their scatters; the backward sweep takes r zeroed.
+template <bool kForward>
+inline __attribute__((always_inline)) void relaxRowsIn(
+    int first, int last, int step, const int* __restrict begin, const int* __restrict column,
+    const SymBlock* __restrict lower, const SymBlock* __restrict inv, const double* __restrict b,
+    double* __restrict x, double* __restrict r) {
   for (int i = first; i != last; i += step) {
-    double s[3] = {b[3 * i] + r[3 * i], b[3 * i + 1] + r[3 * i + 1], b[3 * i + 2] + r[3 * i + 2]};
+    double s[3] = {b[3 * i], b[3 * i + 1], b[3 * i + 2]};
+    if constexpr (kForward) {
+      r[3 * i] = r[3 * i + 1] = r[3 * i + 2] = 0.0;
+    } else {
+      s[0] += r[3 * i], s[1] += r[3 * i + 1], s[2] += r[3 * i + 2];
+    }
     for (int k = begin[i]; k < begin[i + 1]; ++k) lower[k].subtractProduct(x + 3 * column[k], s);
     inv[i].multiply(s, x + 3 * i);
     for (int k = begin[i]; k < begin[i + 1]; ++k) lower[k].subtractProduct(x + 3 * i, r + 3 * column[k]);
+  }
+}
+
+CLOTH_SIM_VECTORISED
+void relaxRows(bool forward, int n, const int* __restrict begin, const int* __restrict column,
+               const SymBlock* __restrict lower, const SymBlock* __restrict inv,
+               const double* __restrict b, double* __restrict x, double* __restrict r) {
+  if (forward) {
+    relaxRowsIn<true>(0, n, 1, begin, column, lower, inv, b, x, r);
+  } else {
+    relaxRowsIn<false>(n - 1, -1, -1, begin, column, lower, inv, b, x, r);
   }
 }
 
@@ -640,8 +661,7 @@ void MultigridPreconditioner::vcycle(int l) {
   // Forward Gauss-Seidel from x = 0. Row i's equation then holds exactly with
   // the new x_j (j < i) and x_j = 0 (j > i), so the residual is
   // r_i = -sum_{j > i} A_ij x_j: gathered from later rows as they are solved.
-  r.setZero();
-  relaxRows(0, n, 1, level.lower_begin.data(), level.lower_column.data(),
+  relaxRows(true, n, level.lower_begin.data(), level.lower_column.data(),
             level.lower_block.data(), inv, level.b.data(), x.data(), r.data());
 
   // Coarse correction: x += P A_c^-1 P^T r (A_c^-1 by the next V-cycle).
@@ -658,7 +678,7 @@ void MultigridPreconditioner::vcycle(int l) {
   // already new; their part -sum_{j > i} A_ij x_j is scattered into r as
   // each row is solved, the old x_j (j < i) are gathered.
   r.setZero();
-  relaxRows(n - 1, -1, -1, level.lower_begin.data(), level.lower_column.data(),
+  relaxRows(false, n, level.lower_begin.data(), level.lower_column.data(),
             level.lower_block.data(), inv, level.b.data(), x.data(), r.data());
 }
 
