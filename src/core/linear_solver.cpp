@@ -208,9 +208,7 @@ double applyPreconditioner(Preconditioner kind, CgWorkspace& ws, const Constrain
   // Cholesky works on unsplit vectors (its cost dwarfs the copies).
   ws.joined_r.resize(3 * n);
   sweeps::joinComponents(r.data(), n, ws.joined_r.data());
-  if (kind == Preconditioner::Multigrid) {
-    ws.multigrid->apply(ws.joined_r, ws.joined_z);  // pinned entries come back zero
-  } else {
+  {
     if (ws.pairs_corrected) {
       // z = B (r - C^T s), s = (C B C^T)^-1 C B r: with y = L^-1 P r, C B r =
       // W^T D^-1 y, and the backward half solves for y - W s.
