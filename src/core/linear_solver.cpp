@@ -1,8 +1,6 @@
 #include "cloth_sim/linear_solver.hpp"
 
 #include <algorithm>
-#include <cstdio>
-#include <cstdlib>
 #include <cmath>
 #include <iterator>
 #include <limits>
@@ -208,31 +206,29 @@ double applyPreconditioner(Preconditioner kind, CgWorkspace& ws, const Constrain
   // Cholesky works on unsplit vectors (its cost dwarfs the copies).
   ws.joined_r.resize(3 * n);
   sweeps::joinComponents(r.data(), n, ws.joined_r.data());
-  {
-    if (ws.pairs_corrected) {
-      // z = B (r - C^T s), s = (C B C^T)^-1 C B r: with y = L^-1 P r, C B r =
-      // W^T D^-1 y, and the backward half solves for y - W s.
-      const BlockLdlt& factor = ws.cholesky->ldlt();
-      factor.forwardSolve(ws.joined_r, ws.pair_half);
-      const Eigen::Index m = ws.pair_s.size();
-      for (Eigen::Index k = 0; k < m; ++k) {
-        double t = 0.0;
-        for (int e = ws.pair_start[k]; e < ws.pair_start[k + 1]; ++e) {
-          t += ws.pair_dwv[e].dot(ws.pair_half[ws.pair_pos[e]]);
-        }
-        ws.pair_s[k] = t;
+  if (ws.pairs_corrected) {
+    // z = B (r - C^T s), s = (C B C^T)^-1 C B r: with y = L^-1 P r, C B r =
+    // W^T D^-1 y, and the backward half solves for y - W s.
+    const BlockLdlt& factor = ws.cholesky->ldlt();
+    factor.forwardSolve(ws.joined_r, ws.pair_half);
+    const Eigen::Index m = ws.pair_s.size();
+    for (Eigen::Index k = 0; k < m; ++k) {
+      double t = 0.0;
+      for (int e = ws.pair_start[k]; e < ws.pair_start[k + 1]; ++e) {
+        t += ws.pair_dwv[e].dot(ws.pair_half[ws.pair_pos[e]]);
       }
-      ws.pair_s = ws.pair_schur.solve(ws.pair_s);
-      for (Eigen::Index k = 0; k < m; ++k) {
-        const double sr = ws.pair_s[k];
-        for (int e = ws.pair_start[k]; e < ws.pair_start[k + 1]; ++e) {
-          ws.pair_half[ws.pair_pos[e]].noalias() -= sr * ws.pair_wv[e];
-        }
-      }
-      factor.backwardSolve(ws.pair_half, ws.joined_z);
-    } else {
-      ws.cholesky->solve(ws.joined_r, ws.joined_z);
+      ws.pair_s[k] = t;
     }
+    ws.pair_s = ws.pair_schur.solve(ws.pair_s);
+    for (Eigen::Index k = 0; k < m; ++k) {
+      const double sr = ws.pair_s[k];
+      for (int e = ws.pair_start[k]; e < ws.pair_start[k + 1]; ++e) {
+        ws.pair_half[ws.pair_pos[e]].noalias() -= sr * ws.pair_wv[e];
+      }
+    }
+    factor.backwardSolve(ws.pair_half, ws.joined_z);
+  } else {
+    ws.cholesky->solve(ws.joined_r, ws.joined_z);
   }
   sweeps::splitComponents(ws.joined_z, z.data());
   filter.applySplit(z.data());
