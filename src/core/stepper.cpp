@@ -337,8 +337,8 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
   // is still positive definite (tension elsewhere outweighs the compressed
   // springs' negative transverse terms); at the first sign that it is not
   // (CG meets negative curvature or stops short, no descent) or that its
-  // model does not hold (a cut step, ||g|| not halved) the solve goes back
-  // to the projected one, until that converges slowly (below). Only for backward Euler and bdf2
+  // model does not hold (a cut step, ||g|| not halved) the rest of the
+  // solve goes back to the projected one. Only for backward Euler and bdf2
   // solved to the tolerance: with their damping axes held, the exact matrix
   // is the Hessian of the potential the line search descends (with turning
   // axes, bdf2 gained energy with it and retried steps: self hard case s2,
@@ -348,8 +348,6 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
   bool exact_allowed = !self_collision_ && settings_.project_compression &&
                        (backward_euler_to_tolerance || bdf2_to_tolerance) &&
                        max_iterations > 1 && !energy_stop_;
-  const bool exact_possible = exact_allowed;
-  int slow_run = 0;  // projected iterations in a row that took a full step and a small cut
   exact_hessian_ = false;
   auto assembleIterate = [&] {
     assemble(model, x, v1, bh, bh * bh, nullptr, nullptr, dampingAxes(), false);
@@ -497,21 +495,6 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
       exact_hessian_ = exact_allowed = false;
     } else if (exact_allowed && model_held) {
       exact_hessian_ = true;
-    }
-    // Gone back to the projected Hessian, Newton converges linearly where
-    // springs stay compressed (a cloth dragged over a table's edge: ||g|| x0.62
-    // an iteration, full steps, 20 iterations short of the tolerance). Two
-    // such iterations in a row and the exact one is tried again: the iterates
-    // have moved on from where it failed. Contact hard case c3 under newton:
-    // 54 -> 5 rejected attempts (Newton missed its tolerance); 05b (collapsed
-    // start) 49 -> 14 under newton, 29 -> 3 under bdf2; c4 94 -> 63.
-    if (!exact_allowed && exact_possible) {
-      const bool slow = alpha == 1.0 && best_norm > 0.25 * g_norm && best_norm < g_norm;
-      slow_run = slow ? slow_run + 1 : 0;
-      if (slow_run >= 2) {
-        exact_allowed = exact_hessian_ = true;
-        slow_run = 0;
-      }
     }
     g_norm = best_norm;
     stats.assembly_s += secondsSince(t0);
