@@ -129,6 +129,13 @@ class Stepper {
  private:
   StepStats runMethod(const Model& model, double h, const History& history, VecX& x, VecX& v,
                       Method method);
+  /// The step's contact passes from (x0_, v0_): solved, checked against the
+  /// colliders (ContactSet::update), solved again until the set holds. With
+  /// `explore`, passes before the set holds take kExploringIterations
+  /// Newton iterations (see step()).
+  StepStats contactPasses(const Model& model, double h, const History& history, VecX& x,
+                          VecX& v, Method method, const CollidersOverStep& colliders,
+                          bool explore);
   StepStats implicitEuler(const Model& model, double h, VecX& x, VecX& v);
   /// Whether implicitEuler's step may run split (implicitEulerSplit): no
   /// contact, no self-repulsion terms, no projected pins, every pin held
@@ -206,6 +213,7 @@ class Stepper {
   SelfRepulsion* repulsion_ = nullptr;  ///< setRepulsion's
   ConstraintFilter filter_;  ///< pins (eliminated) and contacts (projected)
   ContactSet contact_;
+  ContactSet contact_start_;  ///< contact_ at a step's start, for its retry without exploring
   bool contact_on_ = false;  ///< this step has colliders
   double bh_ = 0.0;          ///< the last solve's b h (reaction scale)
   bool linearized_ = false;  ///< the last solve was implicitEuler's: reaction_ is A dv - rhs0_
@@ -242,6 +250,7 @@ class Stepper {
   std::function<bool(const VecX&, const VecX&)> energy_stop_;  ///< setEnergyStop
   double energy_stop_decrement_ = 0.0;
   int iteration_cap_ = 0;  ///< setIterationCap
+  int pass_cap_ = 0;  ///< Newton's iterations in an exploring contact pass (0: no cap)
 };
 
 }  // namespace cloth_sim

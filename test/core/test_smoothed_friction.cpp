@@ -189,8 +189,8 @@ TEST(SmoothedFriction, FoldedTowelAtRestTakesOnePassAStep) {
 // Contact hard case c4 (a cloth on a table's edge stiffened from 1e3 to
 // 1e8 N/m): with exact Coulomb, nodes on the cone's boundary flip between
 // stick and slip at every pass, and the stepper rejects steps by the
-// hundred (bdf2: 208 in 2 s, 44 s). Smoothed, no step is rejected, the
-// passes stay few, and the cloth stays on the table.
+// hundred (bdf2: 208 in 2 s, 44 s; 7-15 passes a step). Smoothed, no step
+// is rejected, the passes stay few, and the cloth stays on the table.
 TEST(SmoothedFriction, StiffenedClothOnATableRunsWithoutRejectedSteps) {
   for (Method m : {Method::ImplicitEuler, Method::Newton, Method::Bdf2}) {
     Scene s = loadScene(std::string(CLOTH_SIM_SOURCE_DIR) +
@@ -208,7 +208,10 @@ TEST(SmoothedFriction, StiffenedClothOnATableRunsWithoutRejectedSteps) {
       EXPECT_LE(st.max_penetration, 1e-6);
       passes += st.contact_passes;
     }
-    EXPECT_LT(static_cast<double>(passes) / 200, 2.0) << toString(m);
+    // newton and bdf2 take an exploring pass (Stepper::step) and one to the
+    // tolerance where the first does not converge in its iterations.
+    const double pass_bound = m == Method::ImplicitEuler ? 2.0 : 3.0;
+    EXPECT_LT(static_cast<double>(passes) / 200, pass_bound) << toString(m);
     // The half on the table top contracts by its sag's strain (2e-3 of
     // 0.3 m) when stiffened; friction holds it there (exact Coulomb: 1.1 mm
     // under implicit_euler; frictionless, it slides off the edge).
