@@ -344,11 +344,10 @@ double ContactSet::frictionPotential(const VecX& v) const {
 ContactCheck ContactSet::update(const CollidersOverStep& colliders, const ConstraintFilter& pins,
                                 const std::vector<double>& mass, const VecX& x0,
                                 const VecX& x1, const VecX& v1, const VecX& reaction,
-                                double bh, const Vec3& gravity, double solve_tolerance,
-                                bool converged) {
+                                double bh, const Vec3& gravity, double solve_tolerance) {
   failure_.clear();
   bool changed = false;
-  const bool refine_friction = converged && ++passes_ <= kFrictionPasses;
+  const bool refine_friction = ++passes_ <= kFrictionPasses;
   changes_ = ContactChanges();
   held_pulls_ = 0;
   const auto& all = *colliders.colliders;

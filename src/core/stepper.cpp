@@ -179,7 +179,7 @@ StepStats Stepper::contactPasses(const Model& model, double h, const History& hi
     if (!stats.ok || !allFinite(x) || !allFinite(v)) break;
     const ContactCheck check =
         contact_.update(colliders, filter_, model.mass, x0_, x, v, reaction_, bh_, model.gravity,
-                        settings_.tolerance, !exploring || part.newton_converged);
+                        settings_.tolerance);
     queries += contact_.lastQueries();
     if (check == ContactCheck::Consistent) {
       if (!exploring || part.newton_converged) break;
