@@ -245,7 +245,6 @@ class Simulation {
   /// measures_ of the current state, the repulsion's energy included.
   void measureState();
   VecX x_pre_self_;                  ///< x1 before the self-collision filter
-  VecX v_self_warm_;                 ///< the filtered answer: the next re-solve's start
   double min_self_distance_ = std::numeric_limits<double>::infinity();
   size_t next_event_ = 0;
   double work_in_total_ = 0.0;

@@ -72,12 +72,6 @@ class Stepper {
   /// Newton's iterations in place of newton_max_iterations (0: that);
   /// the recovery's refined steps set it.
   void setIterationCap(int cap) { iteration_cap_ = cap; }
-  /// The next step()'s Newton solve starts from these velocities instead of
-  /// its predictor, where it is solved to the tolerance (newton, bdf2; not
-  /// a refined step): a step solved again after the self-collision filter
-  /// starts from the last answer. Its tolerance stays relative to the ||g||
-  /// of the step's first solve. Used once; the caller keeps `v` alive.
-  void setWarmStart(const VecX* v) { warm_start_ = v; }
   /// Newton also stops at the first iterate (x1, v1) that `accept` takes
   /// (the recovery's energy check for a refined step) once its decrement is
   /// at most `decrement` (J); empty: never.
@@ -135,9 +129,6 @@ class Stepper {
  private:
   StepStats runMethod(const Model& model, double h, const History& history, VecX& x, VecX& v,
                       Method method);
-  /// Whether `method`'s step is a Newton solve to the tolerance (newton,
-  /// bdf2 with more than one iteration; not a refined step).
-  bool solvesToTolerance(Method method) const;
   /// The step's contact passes from (x0_, v0_): solved, checked against the
   /// colliders (ContactSet::update), solved again until the set holds. With
   /// `explore`, passes before the set holds take kExploringIterations
@@ -248,7 +239,6 @@ class Stepper {
   /// The last contact pass's answer: the next pass's Newton starts there
   /// (empty on a step's first pass).
   VecX v_pass_;
-  const VecX* warm_start_ = nullptr;  ///< setWarmStart
   double pass_g0_ = 0.0;  ///< ||g|| at the first pass's start: later passes' scale
   std::vector<Vec3> damping_axes_;  ///< along-spring damping axes held over a Newton step
   /// newtonSolve's local phase: assemble without the compression projection.

@@ -237,11 +237,6 @@ void Simulation::resolveSelfCollision(double h, const History& history, std::opt
       pin_ends_self_.targets.push_back(self_target_[i]);
       pin_ends_self_.directions.push_back(self_direction_[i]);
     }
-    // Solved again from the filtered answer, not from the predictor: only
-    // the held nodes' neighbours have far to go (newton and bdf2; the
-    // stepper decides, Stepper::setWarmStart).
-    v_self_warm_.swap(v_);
-    stepper_.setWarmStart(&v_self_warm_);
     x_ = x_save_;
     v_ = v_save_;
     const StepStats again =

@@ -95,10 +95,6 @@ StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
   method_ = method;
   contact_on_ = !colliders.empty();
   v_pass_.resize(0);
-  if (warm_start_ && solvesToTolerance(method) && warm_start_->size() == x.size()) {
-    v_pass_ = *warm_start_;
-  }
-  warm_start_ = nullptr;
   StepStats stats;
   if (!contact_on_) {
     contact_.clear();
@@ -116,9 +112,9 @@ StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
     // passes (5.9 -> 2.2 s); the cloth dragged over a table's edge (c3)
     // 0.69 -> 0.39 s. Not in implicit_euler's refined steps, which stop on a
     // decrement or the energy check.
-    const bool explore = solvesToTolerance(method) &&
-                         settings_.newton_max_iterations > kExploringIterations;
-    const VecX warm = v_pass_;  // empty unless setWarmStart
+    const bool explore = (method == Method::Newton || method == Method::Bdf2) &&
+                         settings_.newton_max_iterations > kExploringIterations &&
+                         decrement_stop_ == 0.0 && !energy_stop_;
     if (explore) contact_start_ = contact_;
     stats = contactPasses(model, h, history, x, v, method, colliders, explore);
     if (explore && stats.ok && !stats.newton_converged) {
@@ -129,7 +125,7 @@ StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
       contact_ = contact_start_;
       x = x0_;
       v = v0_;
-      v_pass_ = warm;
+      v_pass_.resize(0);
       setPins(model, pins);
       stats = contactPasses(model, h, history, x, v, method, colliders, false);
       stats.addWork(explored);
@@ -144,11 +140,6 @@ StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
   }
   stats.wall_time_s = secondsSince(start);
   return stats;
-}
-
-bool Stepper::solvesToTolerance(Method method) const {
-  return (method == Method::Newton || method == Method::Bdf2) &&
-         settings_.newton_max_iterations > 1 && decrement_stop_ == 0.0 && !energy_stop_;
 }
 
 StepStats Stepper::contactPasses(const Model& model, double h, const History& history, VecX& x,
