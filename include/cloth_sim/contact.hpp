@@ -271,7 +271,7 @@ class ContactSet {
   std::vector<NodeContact> nodes_;
   std::vector<int> slot_;  ///< per node: index in nodes_, -1 if not in contact
   std::vector<int> released_;  ///< nodes released this step (cycling guard)
-  int passes_ = 0;             ///< updates of converged answers this step
+  int passes_ = 0;             ///< updates this step
   int held_pulls_ = 0;         ///< heldPulls()
   bool slide_held_pulls_ = false;
   ContactChanges changes_;

@@ -109,9 +109,9 @@ StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
     // solved to the tolerance (warm) and checked again. Solved to the
     // tolerance at every pass, the heap (self hard case s1) under newton
     // took 74 Newton iterations a step over 9 passes, 34 with exploring
-    // passes (5.9 -> 2.2 s); the cloth dragged over a table's edge (c3)
-    // 0.69 -> 0.39 s. Not in implicit_euler's refined steps, which stop on a
-    // decrement or the energy check.
+    // passes (5.7 -> 2.7 s for 1 s); the cloth dragged over a table's edge
+    // (c3) 0.68 -> 0.49 s. Not in implicit_euler's refined steps, which stop
+    // on a decrement or the energy check.
     const bool explore = (method == Method::Newton || method == Method::Bdf2) &&
                          settings_.newton_max_iterations > kExploringIterations &&
                          decrement_stop_ == 0.0 && !energy_stop_;
