@@ -251,6 +251,7 @@ class Stepper {
   double energy_stop_decrement_ = 0.0;
   int iteration_cap_ = 0;  ///< setIterationCap
   int pass_cap_ = 0;  ///< Newton's iterations in an exploring contact pass (0: no cap)
+  bool explored_ = false;  ///< contactPasses stopped a pass at pass_cap_
 };
 
 }  // namespace cloth_sim

@@ -117,10 +117,11 @@ StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
                          decrement_stop_ == 0.0 && !energy_stop_;
     if (explore) contact_start_ = contact_;
     stats = contactPasses(model, h, history, x, v, method, colliders, explore);
-    if (explore && stats.ok && !stats.newton_converged) {
+    if (explored_ && (!stats.ok || !stats.newton_converged)) {
       // Newton stalled from the warm start an exploring pass left (smoothed
       // friction of 1e-3 m/s on the stiffened cloth, c4: 20 iterations at
-      // 3.5 % of ||g0||): the step again with every pass to the tolerance.
+      // 3.5 % of ||g0||), or a pass failed: the step again with every pass
+      // to the tolerance, as it was solved before exploring passes.
       const StepStats explored = stats;
       contact_ = contact_start_;
       x = x0_;
@@ -150,6 +151,7 @@ StepStats Stepper::contactPasses(const Model& model, double h, const History& hi
   contact_.begin(colliders, filter_, x, v, model.gravity, h);
   long queries = contact_.lastQueries();
   bool exploring = explore;
+  explored_ = false;
   for (int pass = 1;; ++pass) {
     pass_cap_ = exploring ? kExploringIterations : 0;
     if (pass > 1) {
@@ -176,6 +178,7 @@ StepStats Stepper::contactPasses(const Model& model, double h, const History& hi
       stats.failure = part.failure;
     }
     stats.contact_passes = pass;
+    explored_ = explored_ || (exploring && !part.newton_converged);
     if (!stats.ok || !allFinite(x) || !allFinite(v)) break;
     const ContactCheck check =
         contact_.update(colliders, filter_, model.mass, x0_, x, v, reaction_, bh_, model.gravity,
