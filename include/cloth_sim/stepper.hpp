@@ -132,10 +132,10 @@ class Stepper {
   /// The step's contact passes from (x0_, v0_): solved, checked against the
   /// colliders (ContactSet::update), solved again until the set holds. With
   /// `explore`, passes before the set holds take kExploringIterations
-  /// Newton iterations (see step()).
+  /// Newton iterations (see step()); `explored`: a pass stopped there.
   StepStats contactPasses(const Model& model, double h, const History& history, VecX& x,
                           VecX& v, Method method, const CollidersOverStep& colliders,
-                          bool explore);
+                          bool explore, bool* explored);
   StepStats implicitEuler(const Model& model, double h, VecX& x, VecX& v);
   /// Whether implicitEuler's step may run split (implicitEulerSplit): no
   /// contact, no self-repulsion terms, no projected pins, every pin held
@@ -251,7 +251,6 @@ class Stepper {
   double energy_stop_decrement_ = 0.0;
   int iteration_cap_ = 0;  ///< setIterationCap
   int pass_cap_ = 0;  ///< Newton's iterations in an exploring contact pass (0: no cap)
-  bool explored_ = false;  ///< contactPasses stopped a pass at pass_cap_
 };
 
 }  // namespace cloth_sim

@@ -116,20 +116,21 @@ StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
                          settings_.newton_max_iterations > kExploringIterations &&
                          decrement_stop_ == 0.0 && !energy_stop_;
     if (explore) contact_start_ = contact_;
-    stats = contactPasses(model, h, history, x, v, method, colliders, explore);
-    if (explored_ && (!stats.ok || !stats.newton_converged)) {
+    bool explored = false;
+    stats = contactPasses(model, h, history, x, v, method, colliders, explore, &explored);
+    if (explored && (!stats.ok || !stats.newton_converged)) {
       // Newton stalled from the warm start an exploring pass left (smoothed
       // friction of 1e-3 m/s on the stiffened cloth, c4: 20 iterations at
       // 3.5 % of ||g0||), or a pass failed: the step again with every pass
       // to the tolerance, as it was solved before exploring passes.
-      const StepStats explored = stats;
+      const StepStats first_try = stats;
       contact_ = contact_start_;
       x = x0_;
       v = v0_;
       v_pass_.resize(0);
       setPins(model, pins);
-      stats = contactPasses(model, h, history, x, v, method, colliders, false);
-      stats.addWork(explored);
+      stats = contactPasses(model, h, history, x, v, method, colliders, false, &explored);
+      stats.addWork(first_try);
     }
   }
   // implicit_euler's last pass over x and v checked them (finite_known_);
@@ -145,13 +146,13 @@ StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
 
 StepStats Stepper::contactPasses(const Model& model, double h, const History& history, VecX& x,
                                  VecX& v, Method method, const CollidersOverStep& colliders,
-                                 bool explore) {
+                                 bool explore, bool* explored) {
   StepStats stats;
   contact_.setGrid(model.rows, model.cols);
   contact_.begin(colliders, filter_, x, v, model.gravity, h);
   long queries = contact_.lastQueries();
   bool exploring = explore;
-  explored_ = false;
+  *explored = false;
   for (int pass = 1;; ++pass) {
     pass_cap_ = exploring ? kExploringIterations : 0;
     if (pass > 1) {
@@ -178,7 +179,7 @@ StepStats Stepper::contactPasses(const Model& model, double h, const History& hi
       stats.failure = part.failure;
     }
     stats.contact_passes = pass;
-    explored_ = explored_ || (exploring && !part.newton_converged);
+    *explored = *explored || (exploring && !part.newton_converged);
     if (!stats.ok || !allFinite(x) || !allFinite(v)) break;
     const ContactCheck check =
         contact_.update(colliders, filter_, model.mass, x0_, x, v, reaction_, bh_, model.gravity,
@@ -194,11 +195,11 @@ StepStats Stepper::contactPasses(const Model& model, double h, const History& hi
       stats.failure = contact_.failure();
       break;
     }
-    if (pass >= ContactSet::kMaxPasses && exploring) {  // a last pass to the tolerance
-      exploring = false;
-      continue;
-    }
     if (pass >= ContactSet::kMaxPasses) {
+      if (exploring) {  // a last pass to the tolerance
+        exploring = false;
+        continue;
+      }
       stats.ok = false;
       stats.failure = "contact set did not settle in " + std::to_string(pass) + " passes";
       break;
