@@ -292,7 +292,7 @@ bool SelfCollision::moveZones(const VecX& x0, VecX& x1, std::string* failure, in
     bool frozen = false;
     for (int i : zone) {
       if (inv_mass_[i] == 0.0) frozen = true;  // wedged between two surfaces
-      if (normal_[i].isZero(0.0)) continue;
+      if (normal_[i].isZero(0.0) || guarded_[i]) continue;
       if (axis.isZero(0.0)) axis = normal_[i];
       else if ((normal_[i] - axis).norm() > 1e-9) frozen = true;
     }
@@ -336,7 +336,15 @@ bool SelfCollision::moveZones(const VecX& x0, VecX& x1, std::string* failure, in
     const double angle = omega.norm();
     const Mat3 R = angle > 0.0 ? Eigen::AngleAxisd(angle, omega / angle).toRotationMatrix()
                                : Mat3::Identity();
-    for (int i : zone) x1.segment<3>(3 * i) = c0 + dc + R * (x0.segment<3>(3 * i) - c0);
+    bool into = false;  // a guarded node taken into its collider's band
+    for (int i : zone) {
+      const Vec3 to = c0 + dc + R * (x0.segment<3>(3 * i) - c0);
+      into = into || (guarded_[i] && room_[i] + normal_[i].dot(to - x1_in_.segment<3>(3 * i)) < 0.0);
+    }
+    for (int i : zone) {
+      x1.segment<3>(3 * i) =
+          into ? Vec3(x0.segment<3>(3 * i)) : Vec3(c0 + dc + R * (x0.segment<3>(3 * i) - c0));
+    }
   }
   return true;
 }
@@ -361,6 +369,13 @@ SelfCollisionResult SelfCollision::apply(const Model& model, double h, const Vec
       normal_[i] = normal.normalized();
       if (k < masses.heavy_room.size()) room_[i] = masses.heavy_room[k];
     }
+  }
+  guarded_.assign(n, 0);
+  for (size_t k = 0; k < masses.guarded.size(); ++k) {
+    const int i = masses.guarded[k];
+    normal_[i] = masses.guarded_normal[k].normalized();
+    room_[i] = masses.guarded_room[k];
+    guarded_[i] = 1;
   }
   for (int i : masses.fixed) inv_mass_[i] = 0.0, fixed_[i] = 1, normal_[i].setZero();
   x1_in_ = x1;

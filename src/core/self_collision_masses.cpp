@@ -1,6 +1,8 @@
 // Which nodes the self-collision filter may move, and how: the link between
 // the filter and the colliders (self_collision.hpp, SelfCollisionMasses).
 #include <algorithm>
+#include <cmath>
+#include <limits>
 #include <string>
 
 #include "cloth_sim/collider.hpp"
@@ -16,6 +18,9 @@ void selfCollisionMasses(const std::vector<int>& pinned, const ContactSet& conta
   out->heavy.clear();
   out->heavy_normal.clear();
   out->heavy_room.clear();
+  out->guarded.clear();
+  out->guarded_normal.clear();
+  out->guarded_room.clear();
   if (colliders.empty()) return;
   const int n = static_cast<int>(x1.size() / 3);
   // Per node: the normal of the one surface it is near, or zero when near
@@ -23,6 +28,9 @@ void selfCollisionMasses(const std::vector<int>& pinned, const ContactSet& conta
   std::vector<int> near(n, 0);
   std::vector<Vec3> normal(n, Vec3::Zero());
   std::vector<double> room(n, 0.0);
+  // The nearest collider of every node, for the nodes not held.
+  std::vector<double> nearest(n, std::numeric_limits<double>::infinity());
+  std::vector<Vec3> nearest_normal(n, Vec3::Zero());
   auto hold = [&](int i, const Vec3& nrm) {
     if (near[i] == 0) {
       normal[i] = nrm;
@@ -44,6 +52,7 @@ void selfCollisionMasses(const std::vector<int>& pinned, const ContactSet& conta
     for (int i = 0; i < n; ++i) {
       if (near[i] >= 2) continue;
       const SurfacePoint sp = collider.closest(x1.segment<3>(3 * i), colliders.end[c]);
+      if (sp.distance < nearest[i]) nearest[i] = sp.distance, nearest_normal[i] = sp.normal;
       if (!(sp.distance < colliders.thickness + reach)) continue;
       hold(i, sp.normal);
       // Measured against the surface, which may have moved over the step.
@@ -52,7 +61,13 @@ void selfCollisionMasses(const std::vector<int>& pinned, const ContactSet& conta
     }
   }
   for (int i = 0; i < n; ++i) {
-    if (near[i] == 0) continue;
+    if (near[i] == 0) {
+      if (!std::isfinite(nearest[i]) || nearest_normal[i].isZero(0.0)) continue;
+      out->guarded.push_back(i);
+      out->guarded_normal.push_back(nearest_normal[i]);
+      out->guarded_room.push_back(std::max(nearest[i] - colliders.thickness, 0.0));
+      continue;
+    }
     out->heavy.push_back(i);
     out->heavy_normal.push_back(near[i] >= 2 ? Vec3::Zero() : normal[i]);
     out->heavy_room.push_back(room[i]);
