@@ -85,6 +85,15 @@ class ContactSet {
     slot_.clear();
   }
 
+  /// Keeps the contacts a step starts from (all that begin() reads of the
+  /// last step), and goes back to them: a step taken again starts where its
+  /// first try did.
+  void keepStart() { start_nodes_ = nodes_; }
+  void backToStart() {
+    nodes_ = start_nodes_;
+    reindex(static_cast<int>(slot_.size()));
+  }
+
   /// Start of a step from (x0, v0): keeps last step's contacts that still
   /// touch, re-linearised at x0, and adds those the predicted path
   /// x0 + h v0 + h^2 g would make. Pinned nodes (eliminated) get none.
@@ -269,6 +278,7 @@ class ContactSet {
   ContactBroadPhase broad_;
   long queries_ = 0;
   std::vector<NodeContact> nodes_;
+  std::vector<NodeContact> start_nodes_;  ///< keepStart()'s
   std::vector<int> slot_;  ///< per node: index in nodes_, -1 if not in contact
   std::vector<int> released_;  ///< nodes released this step (cycling guard)
   int passes_ = 0;             ///< updates this step

@@ -213,7 +213,6 @@ class Stepper {
   SelfRepulsion* repulsion_ = nullptr;  ///< setRepulsion's
   ConstraintFilter filter_;  ///< pins (eliminated) and contacts (projected)
   ContactSet contact_;
-  ContactSet contact_start_;  ///< contact_ at a step's start, for its retry without exploring
   bool contact_on_ = false;  ///< this step has colliders
   double bh_ = 0.0;          ///< the last solve's b h (reaction scale)
   bool linearized_ = false;  ///< the last solve was implicitEuler's: reaction_ is A dv - rhs0_

@@ -115,7 +115,7 @@ StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
     const bool explore = (method == Method::Newton || method == Method::Bdf2) &&
                          settings_.newton_max_iterations > kExploringIterations &&
                          decrement_stop_ == 0.0 && !energy_stop_;
-    if (explore) contact_start_ = contact_;
+    if (explore) contact_.keepStart();
     bool explored = false;
     stats = contactPasses(model, h, history, x, v, method, colliders, explore, &explored);
     if (explored && (!stats.ok || !stats.newton_converged)) {
@@ -124,7 +124,7 @@ StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
       // 3.5 % of ||g0||), or a pass failed: the step again with every pass
       // to the tolerance, as it was solved before exploring passes.
       const StepStats first_try = stats;
-      contact_ = contact_start_;
+      contact_.backToStart();
       x = x0_;
       v = v0_;
       v_pass_.resize(0);
