@@ -15,6 +15,15 @@ namespace {
 /// within that fraction of the motion.
 constexpr double kIndependence = 1e-3;
 
+/// A row is held only where closing its gap moves no node by more than this
+/// many times the gap (the filter's own bound, self_collision.cpp's
+/// kMaxReach): max_k |c_k| / |c|^2 at most this. Restricted to what the
+/// contacts leave free, a pair between layers lying on a table keeps only
+/// the tilt of its normal: held, its one row moved a node 4.4e7 m across
+/// the table to meet its gap (the heap, s1, seed 2), and the filter then
+/// made the whole cloth one impact zone. The filter keeps such a pair.
+constexpr double kMaxRowReach = 4.0;
+
 /// Pivoted (right-looking) Cholesky of the symmetric PSD G: takes the row
 /// whose remaining diagonal, given the rows taken before, is largest, while
 /// it is above `relative` times the first one taken. Output: the rows taken.
@@ -79,8 +88,13 @@ void PairProjection::restrict(const std::function<Mat3(int)>& projector) {
         row.c.push_back(c);
       }
     }
-    double norm2 = 0.0;
-    for (const Vec3& c : row.c) norm2 += c.squaredNorm();
+    double norm2 = 0.0, widest = 0.0;
+    for (const Vec3& c : row.c) norm2 += c.squaredNorm(), widest = std::max(widest, c.norm());
+    if (!(widest <= kMaxRowReach * norm2)) {  // too little left free: not held
+      row.nodes.clear();
+      row.c.clear();
+      continue;
+    }
     largest = std::max(largest, norm2);
   }
   if (!(largest > 0.0)) return;  // no row has a free node: nothing held

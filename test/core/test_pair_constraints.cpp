@@ -136,6 +136,34 @@ TEST(PairProjection, MultiplierSignSaysWhetherThePairPushesOrHolds) {
   EXPECT_NEAR(pairs.multiplier(0, table), lambda, 1e-14);
 }
 
+TEST(PairProjection, APairLeftOnlyItsNormalsTiltIsNotHeld) {
+  // Two layers on a table: every node of the pair may only slide across the
+  // table, and the pair's normal is the table's to within a tilt. Held, its
+  // row would close the gap through the tilt alone (a node moved 4.4e7 m in
+  // the heap, s1): such a row is left to the filter; a tilt that leaves the
+  // row a fair part of its norm is held.
+  const Vec3 up(0.0, 0.0, 1.0);
+  auto onTable = [&](int) { return Mat3(Mat3::Identity() - up * up.transpose()); };
+  for (const double tilt : {1e-9, 0.05, 0.5}) {
+    PairConstraint pair;
+    pair.node = {0, 1, 2, 3};
+    pair.w = {1.0, -0.2, -0.5, -0.3};
+    pair.n = Vec3(tilt, 0.0, 1.0).normalized();
+    pair.target = 0.002;
+    PairProjection pairs;
+    pairs.assign({pair});
+    pairs.restrict(onTable);
+    // Row c_k = w_k S n: |c|^2 = 1.38 sin^2, widest sin: held while
+    // 1 / (1.38 sin) <= 4, i.e. sin >= 0.18.
+    EXPECT_EQ(pairs.rows().size(), tilt > 0.2 ? 1u : 0u) << "tilt " << tilt;
+    // What is held meets its gap; what is not leaves v alone.
+    VecX v = VecX::Zero(3 * kNodes);
+    const VecX base = VecX::Zero(3 * kNodes);
+    pairs.meet(base, 1e-3, v);
+    EXPECT_LT(v.lpNorm<Eigen::Infinity>(), 4.0 * pair.target / 1e-3 * (1.0 + 1e-12));
+  }
+}
+
 // The stability map's fling (hard case s3) under bdf2 at stretch 1e8, dt
 // 1e-3: held node by node, the re-solve after the filter gave the pushed
 // nodes' stiff neighbours their velocity and gained 4e-3 J where the filter
