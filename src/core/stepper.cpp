@@ -167,14 +167,11 @@ StepStats Stepper::contactPasses(const Model& model, double h, const History& hi
     if (pass == 1) {
       stats = part;
     } else {
-      stats.cg_iterations += part.cg_iterations;
-      stats.newton_iterations += part.newton_iterations;
+      stats.addWork(part);  // passes and queries are counted here
       stats.residual = std::max(stats.residual, part.residual);
       stats.newton_residual = part.newton_residual;
       stats.linear_converged = part.linear_converged;
       stats.newton_converged = part.newton_converged;
-      stats.assembly_s += part.assembly_s;
-      stats.solve_s += part.solve_s;
       stats.ok = part.ok;
       stats.failure = part.failure;
     }
