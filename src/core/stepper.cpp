@@ -167,7 +167,7 @@ StepStats Stepper::contactPasses(const Model& model, double h, const History& hi
     if (pass == 1) {
       stats = part;
     } else {
-      stats.addWork(part);  // passes and queries are counted here
+      stats.addWork(part);  // its contact passes and queries: set below
       stats.residual = std::max(stats.residual, part.residual);
       stats.newton_residual = part.newton_residual;
       stats.linear_converged = part.linear_converged;
