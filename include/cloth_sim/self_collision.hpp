@@ -228,6 +228,11 @@ class SelfCollision {
   /// energy at every halving down to 4e-7 s (at stretch 1e6, dt 0.01: 0.19
   /// m/s, 1e-6 J at dt/256).
   double room(int i, const VecX& x1) const;
+  /// Node i's distance left towards its surface were it at `at` (< 0: past
+  /// its room), before room()'s round-off.
+  double away(int i, const Vec3& at) const {
+    return room_[i] + normal_[i].dot(at - x1_in_.segment<3>(3 * i));
+  }
   std::vector<int> parent_;  ///< zone union-find (a node alone is its own root)
   std::vector<char> in_zone_;
   std::vector<PairConstraint> pushed_;  ///< pushedPairs()

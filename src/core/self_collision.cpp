@@ -111,10 +111,10 @@ void SelfCollision::makePair(int kind, int a, int b, const std::array<Vec3, 4>& 
 }
 
 double SelfCollision::room(int i, const VecX& x1) const {
-  const double away = room_[i] + normal_[i].dot(x1.segment<3>(3 * i) - x1_in_.segment<3>(3 * i));
+  const double left = away(i, x1.segment<3>(3 * i));
   // Round-off left by a push that took all of it is none (else the next
   // sweep would still count the node free, and converge slowly).
-  return away > kRoomRoundOff * thickness_ ? away : 0.0;
+  return left > kRoomRoundOff * thickness_ ? left : 0.0;
 }
 
 Vec3 SelfCollision::nodeShare(int i, double w, const Vec3& dx, double room, bool wall) const {
@@ -339,7 +339,7 @@ bool SelfCollision::moveZones(const VecX& x0, VecX& x1, std::string* failure, in
     bool into = false;  // a guarded node taken into its collider's band
     for (int i : zone) {
       const Vec3 to = c0 + dc + R * (x0.segment<3>(3 * i) - c0);
-      into = into || (guarded_[i] && room_[i] + normal_[i].dot(to - x1_in_.segment<3>(3 * i)) < 0.0);
+      into = into || (guarded_[i] && away(i, to) < 0.0);
     }
     for (int i : zone) {
       x1.segment<3>(3 * i) =
