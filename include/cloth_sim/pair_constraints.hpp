@@ -72,6 +72,12 @@ class PairProjection {
   /// it holds them together. Restricted: a table's push on a pair's lower
   /// nodes is no part of it. 0 for a row with no free node.
   double multiplier(size_t k, const VecX& reaction) const;
+  /// Every pair's multiplier in a reaction r = C^T lambda (3n: what the
+  /// rows supplied to each node, plus anything the rows' restriction takes
+  /// out, such as a pin's or a contact's own reaction): lambda = G^-1 C r,
+  /// exact where rows share nodes. One entry per pair, 0 for a row not kept
+  /// (dependent, or with no free node).
+  std::vector<double> multipliers(const VecX& reaction) const;
 
   /// The restricted rows kept (independent; by restrict's last call): nodes
   /// and their 3-vectors, zero entries left out.

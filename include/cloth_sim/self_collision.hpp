@@ -55,6 +55,8 @@ struct SelfCollisionResult {
   /// work the pins did on the cloth through the filter (J): the impulses
   /// they held against and the zones they dragged, times their velocity
   double pin_work = 0.0;
+  /// the zones' part of pin_work (J)
+  double zone_pin_work = 0.0;
 };
 
 /// Which nodes the filter may not move, and which it may move only along a

@@ -187,19 +187,37 @@ class Simulation {
   /// step's own reaction may be read.
   double pinWork(const VecX& x1, const VecX& v1, double h, Method taken);
   // simulation_self.cpp
+  /// The pins' work through one attempt's self-collision response (J), by
+  /// the way it reached the cloth (resolveSelfCollision).
+  struct SelfPinWork {
+    double zones = 0.0;          ///< zones the pins dragged, every filter pass
+    double impulses = 0.0;       ///< impulses held against pins, every pass
+    double impulses_last = 0.0;  ///< the same, the last filter pass
+    double rows = 0.0;           ///< through the held pairs of the last re-solve
+    bool solved_rows = false;    ///< the last re-solve held the pushed pairs as rows
+    /// A re-solve holding the pairs as rows replaces the earlier passes'
+    /// impulses: what the pins pushed through a pair is then the row's own
+    /// multiplier times their travel.
+    double total() const { return zones + (solved_rows ? impulses_last + rows : impulses); }
+  };
   /// The self-collision filter on the solved step x_save_ -> x_ (its time
   /// and figures into stats; a failure or a node pushed into a collider
-  /// fails it); adds the pins' work through it to pin_work.
-  void filterSelfCollision(double h, StepStats* stats, double* pin_work);
+  /// fails it); adds the pins' work through it to `work`.
+  void filterSelfCollision(double h, StepStats* stats, SelfPinWork* work);
+  /// Work the pins did through the pairs held as rows in the last solve
+  /// (x_save_ -> x_), from the solve's multipliers: a pin is eliminated from
+  /// the rows, so its reaction (pinWork) leaves out what it pushed on them.
+  /// lambda: the rows' multipliers (PairProjection::multipliers).
+  double rowPinWork(const std::vector<double>& lambda) const;
   /// The self-collision response to the solved step x_save_ -> x_: the
   /// filter, then the step solved again with every node the filter moved
   /// prescribed where it put it (along its displacement), so that its
   /// neighbours follow inside the implicit solve instead of being left
   /// stretched; repeated while the filter still moves nodes (at most
-  /// kSelfSolves solves). Fills stats (a failure fails it) and adds the pins'
-  /// work through the filter to pin_work.
+  /// kSelfSolves solves). Fills stats (a failure fails it) and the pins'
+  /// work through the response.
   void resolveSelfCollision(double h, const History& history, std::optional<Method> as,
-                            StepStats* stats, double* pin_work);
+                            StepStats* stats, SelfPinWork* pin_work);
   /// The step's self contacts and closest self distance, at its end (once,
   /// after the last filter).
   void measureSelfCollision(StepStats* stats);

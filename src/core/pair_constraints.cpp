@@ -207,6 +207,22 @@ void PairProjection::meet(const VecX& base, double scale, VecX& v) const {
   }
 }
 
+std::vector<double> PairProjection::multipliers(const VecX& reaction) const {
+  std::vector<double> out(pairs_.size(), 0.0);
+  if (rows_.empty()) return out;
+  Eigen::VectorXd y(static_cast<Eigen::Index>(rows_.size()));
+  for (size_t r = 0; r < rows_.size(); ++r) {
+    double sum = 0.0;
+    for (size_t k = 0; k < rows_[r].nodes.size(); ++k) {
+      sum += rows_[r].c[k].dot(reaction.segment<3>(3 * rows_[r].nodes[k]));
+    }
+    y[static_cast<Eigen::Index>(r)] = sum;
+  }
+  solveGram(y);
+  for (size_t r = 0; r < rows_.size(); ++r) out[kept_[r]] = y[static_cast<Eigen::Index>(r)];
+  return out;
+}
+
 double PairProjection::multiplier(size_t k, const VecX& reaction) const {
   if (k >= all_rows_.size()) return 0.0;
   const Row& row = all_rows_[k];

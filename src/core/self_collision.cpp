@@ -407,6 +407,7 @@ SelfCollisionResult SelfCollision::apply(const Model& model, double h, const Vec
   for (const auto& [node, tri] : pairs_.point_triangle) consider(0, node, tri);
   for (const auto& [ea, eb] : pairs_.edge_edge) consider(1, ea, eb);
   double pin_work = 0.0;  // times h^2 until the end
+  double zone_pin_work = 0.0;  // its zones' part
   // Projected Gauss-Seidel: pairs share nodes, so one pass over them
   // overshoots where a later pair lifts a node an earlier one already set
   // (by up to half its correction); the sweeps take that back.
@@ -473,7 +474,7 @@ SelfCollisionResult SelfCollision::apply(const Model& model, double h, const Vec
           parent_[find(nodes[k])] = find(nodes[0]);
         }
       }
-      if (!moveZones(x0, x1, &result.failure, &result.zone_nodes, &pin_work)) {
+      if (!moveZones(x0, x1, &result.failure, &result.zone_nodes, &zone_pin_work)) {
         result.ok = false;
         return result;
       }
@@ -491,7 +492,8 @@ SelfCollisionResult SelfCollision::apply(const Model& model, double h, const Vec
       v.segment<3>(3 * i) += (x1.segment<3>(3 * i) - x1_in_.segment<3>(3 * i)) / h;
     }
   }
-  result.pin_work = pin_work / (h * h);
+  result.pin_work = (pin_work + zone_pin_work) / (h * h);
+  result.zone_pin_work = zone_pin_work / (h * h);
   return result;
 }
 

@@ -292,11 +292,12 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
   stepper_.setEnergyStop(nullptr, 0.0);
   // The self-collision filter, then the step solved again with the nodes it
   // moved held where it put them (simulation_self.cpp).
-  double self_pin_work = 0.0;
+  SelfPinWork self_work;
   if (stats.ok && self_collision_.enabled()) {
-    resolveSelfCollision(h, history, as, &stats, &self_pin_work);
+    resolveSelfCollision(h, history, as, &stats, &self_work);
     if (stats.ok) measureSelfCollision(&stats);
   }
+  const double self_pin_work = self_work.total();
 
   // Work the pins did: reaction at the end of the step times their travel,
   // plus what they did through the self-collision response (impulses they
