@@ -88,8 +88,8 @@ class Stepper {
   /// Newton solve to the tolerance holds its damping axes and may go on with
   /// the exact Hessian once it converges (see newtonSolve): the newton
   /// method's always, bdf2's (and its retries as backward Euler) in a step
-  /// without colliders. With it, only the newton method holds its axes, and
-  /// no solve takes the exact phase.
+  /// without colliders. With it, only the newton method holds its axes and
+  /// takes the exact phase.
   void setSelfCollision(bool on) { self_collision_ = on; }
   /// Whether bdf2's steps, and its retries as backward Euler, hold their
   /// damping axes and may take the exact phase in a step with (or without)

@@ -58,17 +58,23 @@ TEST(NewtonLocalPhase, ConvergesQuadraticallyOnACrumpledCloth) {
   }
 }
 
-// The same solve with the local phase's exact matrix left out (with
-// self-collision on, Newton keeps the projected one; no two parts of this
-// cloth come within the thickness, so that is the only difference): the
-// linear convergence the phase cures (17.8 iterations a step). Guards the
-// measurement above against a cloth that simply got easier.
-TEST(NewtonLocalPhase, ProjectedNewtonIsLinearThere) {
-  const SolveCounts r = runSteps(
-      {"solver.method=newton", "self_collision={enabled: true, thickness: 0.002}"}, 100);
-  EXPECT_TRUE(r.converged);
-  EXPECT_GT(r.min_self_distance, 0.002);
-  EXPECT_GE(r.newton_iterations, 8 * 100);
+// With self-collision as well (since session 45): the twist (self hard case
+// s4) under newton, whose wrapped flaps keep springs compressed, took 35.6
+// Newton iterations a step with the projected matrix throughout and 349
+// rejected attempts; with the local phase 10.7. (This test once guarded the
+// one above by switching the phase off through self-collision: projected,
+// the crumpled cloth took 17.8 iterations a step.)
+TEST(NewtonLocalPhase, TakenWithSelfCollisionToo) {
+  Simulation sim(loadScene(std::string(CLOTH_SIM_SOURCE_DIR) + "/config/scenes/hard/self/s4_twist.yaml",
+                           {"solver.method=newton"}));
+  long iterations = 0, steps = 0;
+  while (sim.time() < 1.2 - 1e-9) {
+    const StepStats s = sim.step();
+    ASSERT_TRUE(s.ok) << "t = " << sim.time() << ": " << s.failure;
+    iterations += s.newton_iterations;
+    ++steps;
+  }
+  EXPECT_LE(iterations, 15 * steps);
 }
 
 }  // namespace
