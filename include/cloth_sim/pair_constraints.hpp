@@ -90,6 +90,8 @@ class PairProjection {
  private:
   /// G^-1 y in place (y: one entry a row).
   void solveGram(Eigen::VectorXd& y) const;
+  /// C v: each kept row's value on v (3n).
+  Eigen::VectorXd rowValues(const VecX& v) const;
   std::vector<PairConstraint> pairs_;
   std::vector<Row> rows_;
   std::vector<int> kept_;  ///< per kept row, its pair

@@ -144,8 +144,7 @@ void PairProjection::restrict(const std::function<Mat3(int)>& projector) {
 
 void PairProjection::solveGram(Eigen::VectorXd& y) const { y = gram_->solve(y); }
 
-void PairProjection::project(VecX& v) const {
-  if (rows_.empty()) return;
+Eigen::VectorXd PairProjection::rowValues(const VecX& v) const {
   Eigen::VectorXd y(static_cast<Eigen::Index>(rows_.size()));
   for (size_t r = 0; r < rows_.size(); ++r) {
     double sum = 0.0;
@@ -154,6 +153,12 @@ void PairProjection::project(VecX& v) const {
     }
     y[static_cast<Eigen::Index>(r)] = sum;
   }
+  return y;
+}
+
+void PairProjection::project(VecX& v) const {
+  if (rows_.empty()) return;
+  Eigen::VectorXd y = rowValues(v);
   solveGram(y);
   for (size_t r = 0; r < rows_.size(); ++r) {
     for (size_t k = 0; k < rows_[r].nodes.size(); ++k) {
@@ -210,14 +215,7 @@ void PairProjection::meet(const VecX& base, double scale, VecX& v) const {
 std::vector<double> PairProjection::multipliers(const VecX& reaction) const {
   std::vector<double> out(pairs_.size(), 0.0);
   if (rows_.empty()) return out;
-  Eigen::VectorXd y(static_cast<Eigen::Index>(rows_.size()));
-  for (size_t r = 0; r < rows_.size(); ++r) {
-    double sum = 0.0;
-    for (size_t k = 0; k < rows_[r].nodes.size(); ++k) {
-      sum += rows_[r].c[k].dot(reaction.segment<3>(3 * rows_[r].nodes[k]));
-    }
-    y[static_cast<Eigen::Index>(r)] = sum;
-  }
+  Eigen::VectorXd y = rowValues(reaction);
   solveGram(y);
   for (size_t r = 0; r < rows_.size(); ++r) out[kept_[r]] = y[static_cast<Eigen::Index>(r)];
   return out;
