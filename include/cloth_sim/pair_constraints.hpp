@@ -66,17 +66,14 @@ class PairProjection {
   /// which each pair's gap at the positions base + scale v is its `target`
   /// (least squares where the rows are dependent). Inputs: base (3n), scale > 0.
   void meet(const VecX& base, double scale, VecX& v) const;
-  /// The multiplier of pair k in a reaction r (3n, what the constraints
-  /// supplied to each node): c . r / |c|^2 with c its restricted row
-  /// (S_k w_k n)_k, so > 0 where the pair pushes its sides apart, < 0 where
-  /// it holds them together. Restricted: a table's push on a pair's lower
-  /// nodes is no part of it. 0 for a row with no free node.
-  double multiplier(size_t k, const VecX& reaction) const;
   /// Every pair's multiplier in a reaction r = C^T lambda (3n: what the
   /// rows supplied to each node, plus anything the rows' restriction takes
-  /// out, such as a pin's or a contact's own reaction): lambda = G^-1 C r,
-  /// exact where rows share nodes. One entry per pair, 0 for a row not kept
-  /// (dependent, or with no free node).
+  /// out, such as a pin's or a table's own reaction): lambda = G^-1 C r with
+  /// C the restricted rows (S_k w_k n)_k, exact where rows share nodes; > 0
+  /// where the pair pushes its sides apart, < 0 where it holds them
+  /// together. One entry per pair, 0 for a row not kept (dependent, or with
+  /// no free node). (Read row by row, c . r / |c|^2, rows sharing a node
+  /// took each other's load: a pair pulling with -1.05 N read +0.01.)
   std::vector<double> multipliers(const VecX& reaction) const;
 
   /// The restricted rows kept (independent; by restrict's last call): nodes
@@ -95,7 +92,6 @@ class PairProjection {
   std::vector<PairConstraint> pairs_;
   std::vector<Row> rows_;
   std::vector<int> kept_;  ///< per kept row, its pair
-  std::vector<Row> all_rows_;  ///< every pair's restricted row
   /// G's factor; shared by copies (a copy's restrict makes its own)
   std::shared_ptr<const Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>>> gram_;
 };

@@ -61,14 +61,12 @@ void pivotedRows(Eigen::MatrixXd G, double relative, std::vector<int>* taken) {
 
 void PairProjection::assign(std::vector<PairConstraint> pairs) {
   pairs_ = std::move(pairs);
-  all_rows_.clear();
   rows_.clear();
   kept_.clear();
   gram_.reset();
 }
 
 void PairProjection::restrict(const std::function<Mat3(int)>& projector) {
-  all_rows_.clear();
   rows_.clear();
   kept_.clear();
   gram_.reset();
@@ -115,7 +113,6 @@ void PairProjection::restrict(const std::function<Mat3(int)>& projector) {
   pivotedRows(gram_all, kIndependence * kIndependence, &kept_);
   std::sort(kept_.begin(), kept_.end());
   for (int r : kept_) rows_.push_back(all[r]);
-  all_rows_ = all;
   if (rows_.empty()) return;
   // G = C C^T over the kept rows: rows r, s meet where they share a node.
   std::unordered_map<int, std::vector<std::pair<int, Vec3>>> by_node;
@@ -219,17 +216,6 @@ std::vector<double> PairProjection::multipliers(const VecX& reaction) const {
   solveGram(y);
   for (size_t r = 0; r < rows_.size(); ++r) out[kept_[r]] = y[static_cast<Eigen::Index>(r)];
   return out;
-}
-
-double PairProjection::multiplier(size_t k, const VecX& reaction) const {
-  if (k >= all_rows_.size()) return 0.0;
-  const Row& row = all_rows_[k];
-  double along = 0.0, norm2 = 0.0;
-  for (size_t j = 0; j < row.nodes.size(); ++j) {
-    along += row.c[j].dot(reaction.segment<3>(3 * row.nodes[j]));
-    norm2 += row.c[j].squaredNorm();
-  }
-  return norm2 > 0.0 ? along / norm2 : 0.0;
 }
 
 }  // namespace cloth_sim
