@@ -75,6 +75,7 @@ struct CollidersOverStep {
   std::vector<Pose> start, end;
   double thickness = 0.0;
   double friction_smoothing = 0.0;  ///< m/s; 0: exact stick/slip (Scene::Contact)
+  bool exact_sticking = true;       ///< Scene::Contact::exact_sticking
   bool empty() const { return !colliders || colliders->empty(); }
 };
 

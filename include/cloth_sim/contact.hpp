@@ -9,10 +9,13 @@
 //    moving with the collider's surface;
 //  - friction: a sliding node feels mu times its normal force against its
 //    slip, the normal force lagged from the previous pass of the same step.
-//    With a friction smoothing eps > 0 (contact.friction_smoothing) no node
-//    sticks: friction is mu f_n f1(|s|) against the slip s, with IPC's f1
-//    rising smoothly from 0 to 1 over |s| < eps (Li et al. 2020), so a
-//    small slip changes the force a little instead of switching a state.
+//    With a friction smoothing eps > 0 (contact.friction_smoothing) a step
+//    in which a contact slides has no sticking node: friction is mu f_n
+//    f1(|s|) against the slip s, with IPC's f1 rising smoothly from 0 to 1
+//    over |s| < eps (Li et al. 2020), so one solve finds every node that
+//    slides. With exact_sticking (the default) a step where every contact
+//    sticks keeps exact stick states, and a node that ends a step slipping
+//    slower than eps sticks again; without it no node ever sticks.
 // After each solve `update` checks the answer against Coulomb's law and the
 // colliders (adhesion released, stick/slip switched, new contacts added);
 // the step is solved again until nothing changes. With no colliders none of
@@ -286,7 +289,11 @@ class ContactSet {
   bool slide_held_pulls_ = false;
   ContactChanges changes_;
   double h_ = 0.0;
-  double smoothing_ = 0.0;  ///< friction smoothing eps (m/s); 0: stick/slip
+  double smoothing_ = 0.0;  ///< friction smoothing eps of this step (m/s); 0: stick/slip
+  /// eps for steps in which a contact slides, with exact sticking at rest
+  /// (CollidersOverStep::exact_sticking); 0: the step's mode is fixed.
+  double motion_smoothing_ = 0.0;
+  void smoothAll(const CollidersOverStep& colliders);
   FrictionSolve friction_solve_ = FrictionSolve::Linearized;
   double max_penetration_ = 0.0;
   std::string failure_;

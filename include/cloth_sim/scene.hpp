@@ -111,10 +111,16 @@ struct Scene {
   struct Contact {
     double thickness = 0.002;  ///< m, >= 0: nodes keep this far from every surface
     double friction = 0.3;     ///< Coulomb mu >= 0 (static = kinetic)
-    /// m/s, >= 0. 0: exact stick/slip states. > 0: Coulomb's law smoothed
-    /// below this slip speed (IPC's f1, Li et al. 2020): no sticking state;
-    /// a node under a load inside the cone creeps at a fraction of it.
-    double friction_smoothing = 0.0;
+    /// m/s, >= 0. 0: exact stick/slip states throughout. > 0: Coulomb's
+    /// law smoothed below this slip speed (IPC's f1, Li et al. 2020) in
+    /// every step where a contact slides, so one solve finds which nodes
+    /// slide (docs/design.md "Friction: exact at rest, smoothed in motion").
+    double friction_smoothing = 1.0e-3;
+    /// With friction_smoothing > 0: true, a contact that ends a step slipping
+    /// slower than it sticks exactly (held to its surface) until a force
+    /// beyond its cone moves it; false, no stick state ever (a node under a
+    /// load inside its cone creeps at under friction_smoothing).
+    bool exact_sticking = true;
   } contact;
   std::vector<ColliderParams> colliders;  ///< none: no contact code runs
 

@@ -105,12 +105,16 @@ void validateCollider(const ColliderParams& c, const std::string& path) {
 }  // namespace
 
 void readContact(const YAML::Node& contact, const YAML::Node& colliders, Scene* scene) {
-  const Fields f(contact, "contact", {"thickness", "friction", "friction_smoothing"});
+  const Fields f(contact, "contact",
+                 {"thickness", "friction", "friction_smoothing", "exact_sticking"});
   if (f.has("thickness")) scene->contact.thickness = readNumber(f.get("thickness"), f.path("thickness"));
   if (f.has("friction")) scene->contact.friction = readNumber(f.get("friction"), f.path("friction"));
   if (f.has("friction_smoothing")) {
     scene->contact.friction_smoothing =
         readNumber(f.get("friction_smoothing"), f.path("friction_smoothing"));
+  }
+  if (f.has("exact_sticking")) {
+    scene->contact.exact_sticking = readBool(f.get("exact_sticking"), f.path("exact_sticking"));
   }
   if (!colliders.IsDefined() || colliders.IsNull()) return;
   if (!colliders.IsSequence()) {

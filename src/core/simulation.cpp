@@ -86,6 +86,7 @@ void Simulation::reset() {
   collider_step_.colliders = &colliders_;
   collider_step_.thickness = scene_.contact.thickness;
   collider_step_.friction_smoothing = scene_.contact.friction_smoothing;
+  collider_step_.exact_sticking = scene_.contact.exact_sticking;
   max_penetration_ = 0.0;
   self_collision_ = SelfCollision(model_, scene_.self_collision);
   measureState();  // the repulsion's energy needs the self-collision set up

@@ -35,7 +35,9 @@ inline ColliderParams floorPlane(std::optional<double> mu = std::nullopt) {
 }
 
 /// The floor plane (friction mu), still over a step, for driving a
-/// ContactSet by hand. Not copyable: `over` points at `colliders`.
+/// ContactSet by hand: exact stick/slip, or smoothed throughout (no exact
+/// sticking) with a friction_smoothing > 0. Not copyable: `over` points at
+/// `colliders`.
 struct StillFloor {
   std::vector<Collider> colliders;
   CollidersOverStep over;
@@ -45,6 +47,7 @@ struct StillFloor {
     over.start = over.end = {Pose{}};
     over.thickness = thickness;
     over.friction_smoothing = friction_smoothing;
+    over.exact_sticking = false;
   }
   StillFloor(const StillFloor&) = delete;
   StillFloor& operator=(const StillFloor&) = delete;

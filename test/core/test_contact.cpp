@@ -20,10 +20,14 @@ constexpr double kThickness = 0.002;
 constexpr double kG = 9.81;
 
 /// Particles (no springs) lying on z = 0 at the contact thickness.
+/// Exact Coulomb with stick/slip states throughout (friction_smoothing 0):
+/// the laws these tests check are its discrete answers. The default
+/// (exact at rest, smoothed in motion) is tested in test_smoothed_friction.cpp.
 Scene particlesOnFloor(double mu, Method method) {
   Scene s = bareScene(3, 3);
   s.cloth.origin = Vec3(0.0, 0.0, kThickness);
   s.contact.thickness = kThickness;
+  s.contact.friction_smoothing = 0.0;
   s.colliders = {floorPlane(mu)};
   s.solver.method = method;
   s.solver.dt = 0.01;
