@@ -118,8 +118,10 @@ struct Scene {
     double friction_smoothing = 1.0e-3;
     /// With friction_smoothing > 0: true, a contact that ends a step slipping
     /// slower than it sticks exactly (held to its surface) until a force
-    /// beyond its cone moves it; false, no stick state ever (a node under a
-    /// load inside its cone creeps at under friction_smoothing).
+    /// beyond its cone moves it (with self_collision enabled: exact
+    /// stick/slip states throughout, friction_smoothing unused); false, no
+    /// stick state ever (a node under a load inside its cone creeps at under
+    /// friction_smoothing).
     bool exact_sticking = true;
   } contact;
   std::vector<ColliderParams> colliders;  ///< none: no contact code runs
