@@ -117,8 +117,8 @@ struct Scene {
     /// slide (docs/design.md "Friction: exact at rest, smoothed in motion").
     double friction_smoothing = 1.0e-3;
     /// With friction_smoothing > 0: true, a contact that ends a step slipping
-    /// slower than it sticks exactly (held to its surface) until a force
-    /// beyond its cone moves it (with self_collision enabled: exact
+    /// slower than friction_smoothing sticks exactly (held to its surface)
+    /// until a force beyond its cone moves it (with self_collision enabled: exact
     /// stick/slip states throughout, friction_smoothing unused); false, no
     /// stick state ever (a node under a load inside its cone creeps at under
     /// friction_smoothing).

@@ -24,12 +24,14 @@ constexpr double kThickness = 0.002;
 constexpr double kG = 9.81;
 constexpr double kEps = 1e-3;  // m/s
 
-Scene particlesOnFloor(double mu, Method method) {
+/// Particles on a floor, friction smoothed throughout (exact_sticking false)
+/// or with the default settings (exact sticking at rest, eps = kEps).
+Scene particlesOnFloor(double mu, Method method, bool exact_sticking = false) {
   Scene s = bareScene(3, 3);
   s.cloth.origin = Vec3(0.0, 0.0, kThickness);
   s.contact.thickness = kThickness;
   s.contact.friction_smoothing = kEps;
-  s.contact.exact_sticking = false;  // smoothed throughout
+  s.contact.exact_sticking = exact_sticking;
   s.colliders = {floorPlane(mu)};
   s.solver.method = method;
   s.solver.dt = 0.01;
@@ -81,12 +83,14 @@ TEST(SmoothedFriction, WithinTheConeAParticleCreepsAtTheBalancedSpeed) {
 
 // Beyond the cone the slip soon exceeds eps, where f1 = 1: from the second
 // step on backward Euler's answer is exact Coulomb's, v_{n+1} = v_n + h a,
-// a = g (sin - mu cos) (Newton solves f1 exactly at its iterates).
-TEST(SmoothedFriction, BeyondTheConeAParticleSlidesAsUnderCoulomb) {
+// a = g (sin - mu cos) (Newton solves f1 exactly at its iterates). By
+// default the first step smooths too (a sticking node outside its cone
+// smooths the step).
+void expectSlidingAsUnderCoulomb(bool exact_sticking) {
   const double theta = 0.3, mu = 0.1;
   const double a = kG * (std::sin(theta) - mu * std::cos(theta));
   for (Method m : {Method::Newton, Method::ImplicitEuler}) {
-    Scene s = particlesOnFloor(mu, m);
+    Scene s = particlesOnFloor(mu, m, exact_sticking);
     s.gravity = kG * Vec3(std::sin(theta), 0.0, -std::cos(theta));
     Simulation sim(s);
     const double h = s.solver.dt;
@@ -102,6 +106,10 @@ TEST(SmoothedFriction, BeyondTheConeAParticleSlidesAsUnderCoulomb) {
       }
     }
   }
+}
+
+TEST(SmoothedFriction, BeyondTheConeAParticleSlidesAsUnderCoulomb) {
+  expectSlidingAsUnderCoulomb(false);
 }
 
 // The law a Newton iterate sees: the force is minus the potential's
@@ -265,24 +273,13 @@ TEST(SmoothedFriction, SceneRefusesANegativeOrNonFiniteSmoothing) {
 
 // ---- The default: exact sticking at rest, smoothed in motion ----
 
-/// Particles on a floor with the default friction settings.
-Scene particlesOnFloorByDefault(double mu, Method method) {
-  Scene s = bareScene(3, 3);
-  s.cloth.origin = Vec3(0.0, 0.0, kThickness);
-  s.contact.thickness = kThickness;
-  s.colliders = {floorPlane(mu)};
-  s.solver.method = method;
-  s.solver.dt = 0.01;
-  return s;
-}
-
 // Inside the cone nothing slides, so every step is exact Coulomb's: the
 // particles stand still to round-off (smoothed throughout they creep,
 // WithinTheConeAParticleCreepsAtTheBalancedSpeed).
 TEST(DefaultFriction, InsideTheConeAParticleStandsStill) {
   const double theta = 0.3, mu = 0.35;  // tan(0.3) = 0.309 < mu
   for (Method m : {Method::ImplicitEuler, Method::Newton, Method::Bdf2}) {
-    Scene s = particlesOnFloorByDefault(mu, m);
+    Scene s = particlesOnFloor(mu, m, true);
     s.gravity = kG * Vec3(std::sin(theta), 0.0, -std::cos(theta));
     Simulation sim(s);
     const VecX x0 = sim.positions();
@@ -295,35 +292,15 @@ TEST(DefaultFriction, InsideTheConeAParticleStandsStill) {
   }
 }
 
-// Beyond the cone the first step smooths (a sticking node outside its cone
-// smooths the step) and from then on the slip exceeds eps: each step is
-// exact Coulomb's, v_{n+1} = v_n + h a, a = g (sin - mu cos).
 TEST(DefaultFriction, BeyondTheConeAParticleSlidesAsUnderCoulomb) {
-  const double theta = 0.3, mu = 0.1;
-  const double a = kG * (std::sin(theta) - mu * std::cos(theta));
-  for (Method m : {Method::Newton, Method::ImplicitEuler}) {
-    Scene s = particlesOnFloorByDefault(mu, m);
-    s.gravity = kG * Vec3(std::sin(theta), 0.0, -std::cos(theta));
-    Simulation sim(s);
-    const double h = s.solver.dt;
-    ASSERT_TRUE(sim.step().ok);
-    double v = sim.velocities()[0];
-    EXPECT_GT(v, kEps);
-    for (int n = 0; n < 100; ++n) {
-      ASSERT_TRUE(sim.step().ok);
-      v += h * a;
-      for (int i = 0; i < sim.numNodes(); ++i) {
-        ASSERT_NEAR(sim.velocities()[3 * i], v, 1e-9 * v) << toString(m) << " step " << n;
-      }
-    }
-  }
+  expectSlidingAsUnderCoulomb(true);
 }
 
 // A slide that friction stops ends stuck, exactly: once a step ends below
 // eps the node sticks at the next, and then it does not move at all.
 TEST(DefaultFriction, ASlideFrictionStopsEndsStuckExactly) {
   for (Method m : {Method::ImplicitEuler, Method::Newton, Method::Bdf2}) {
-    Scene s = particlesOnFloorByDefault(0.4, m);
+    Scene s = particlesOnFloor(0.4, m, true);
     s.gravity = Vec3(0.0, 0.0, -kG);
     s.initial.velocity = Vec3(1.5, 0.0, 0.0);  // stops after ~0.38 s
     Simulation sim(s);
