@@ -294,6 +294,8 @@ class ContactSet {
   /// (CollidersOverStep::exact_sticking); 0: the step's mode is fixed.
   double motion_smoothing_ = 0.0;
   void smoothAll(const CollidersOverStep& colliders);
+  /// mu times the normal force, summed over c's planes (their last normal_force).
+  static double frictionCap(const NodeContact& c, const std::vector<Collider>& all);
   FrictionSolve friction_solve_ = FrictionSolve::Linearized;
   double max_penetration_ = 0.0;
   std::string failure_;

@@ -122,6 +122,14 @@ bool ContactSet::addPlane(NodeContact& c, int collider, const SurfacePoint& loca
   return refresh(c, colliders);
 }
 
+double ContactSet::frictionCap(const NodeContact& c, const std::vector<Collider>& all) {
+  double cap = 0.0;
+  for (int q = 0; q < c.num_planes; ++q) {
+    cap += all[c.plane[q].collider].friction() * std::max(c.plane[q].normal_force, 0.0);
+  }
+  return cap;
+}
+
 /// The step from here on under smoothed friction: every sticking node
 /// slides with its cap from the last normal force (its slip not known yet:
 /// the drag 2 / eps holds it until the solve moves it).
@@ -133,11 +141,7 @@ void ContactSet::smoothAll(const CollidersOverStep& colliders) {
     c.sticking = false;
     c.slip.setZero();
     c.slip_speed = 0.0;
-    double cap = 0.0;  // mu times the last normal force
-    for (int q = 0; q < c.num_planes; ++q) {
-      cap += all[c.plane[q].collider].friction() * std::max(c.plane[q].normal_force, 0.0);
-    }
-    c.friction = cap;
+    c.friction = frictionCap(c, all);
   }
 }
 
@@ -413,10 +417,7 @@ ContactCheck ContactSet::update(const CollidersOverStep& colliders, const Constr
     }
     const double pull_tolerance =
         std::max(1e-9, solve_tolerance) * (force.norm() + mass[c.node] * gravity.norm());
-    double cap = 0.0;
-    for (int q = 0; q < c.num_planes; ++q) {
-      cap += all[c.plane[q].collider].friction() * std::max(lambda[q], 0.0);
-    }
+    const double cap = frictionCap(c, all);
     const Vec3 tangential = c.tangent * force;
     const double needed = tangential.norm();
     // A sticking node outside the friction cone slides first: its normal
