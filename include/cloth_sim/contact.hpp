@@ -43,6 +43,7 @@ struct ContactChanges {
   int slid = 0;      ///< sticking nodes outside the cone
   int stuck = 0;     ///< sliding nodes whose slip friction would reverse
   int friction = 0;  ///< friction magnitude or direction still lagging
+  bool smoothed = false;  ///< the step turned smoothed (a sticking node outside its cone)
 };
 
 class ContactSet {
@@ -151,7 +152,8 @@ class ContactSet {
     /// Hessian exactly at each iterate's slip (f1' along it).
     Newton,
     /// Newton stopped on a decrement or the energy check (implicit_euler's
-    /// refined steps): the same force and potential, and along the slip the
+    /// refined steps), or after one iteration (a linearly implicit newton
+    /// or bdf2 step): the same force and potential, and along the slip the
     /// drag f1(|s|) / |s| instead of f1', a quadratic above f0 (concave in
     /// |s|^2), so each full step lowers the potential even where a slide
     /// stops. f1' overshoots there (0 beyond eps): the fold demo at stretch

@@ -540,6 +540,7 @@ ContactCheck ContactSet::update(const CollidersOverStep& colliders, const Constr
 
   if (smooth_now) {
     smoothAll(colliders);
+    changes_.smoothed = true;
     ++changes_.slid;
     changed = true;
   }

@@ -157,6 +157,11 @@ StepStats Stepper::contactPasses(const Model& model, double h, const History& hi
     pass_cap_ = exploring ? kExploringIterations : 0;
     if (pass > 1) {
       v_pass_.swap(v);  // v is reset below: no copy
+      // The pass after the step turned smoothed starts from the predictor,
+      // not from the sticking answer: at its zero slip the drag is 2 / eps,
+      // and one Newton iteration there stopped a particle landing at 1 m/s
+      // (0.013 m/s after the step where Coulomb leaves 0.96).
+      if (contact_.lastChanges().smoothed) v_pass_.resize(0);
       x = x0_;
       v = v0_;
       setPins(model, *pins_);
@@ -335,7 +340,12 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
   }
   if (contact_on_) {
     contact_.prescribe(ax_, bh, v1);
-    contact_.setFrictionSolve(decrement_stop_ > 0.0 || energy_stop_
+    // One iteration (a linearly implicit newton or bdf2 step) takes the
+    // descent's drag too: with f1' (0 beyond eps) its one solve holds a
+    // slide's friction constant, and a node that stops within the step is
+    // pushed back (drop64 under bdf2: 100 steps gained energy in 3 s,
+    // 482 CG iterations a step; with the drag none, 141; docs/design.md).
+    contact_.setFrictionSolve(decrement_stop_ > 0.0 || energy_stop_ || max_iterations == 1
                                   ? ContactSet::FrictionSolve::Descent
                                   : ContactSet::FrictionSolve::Newton);
   }
