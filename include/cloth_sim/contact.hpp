@@ -87,6 +87,8 @@ class ContactSet {
   void clear() {
     nodes_.clear();
     slot_.clear();
+    pulled_.clear();
+    released_.clear();
   }
 
   /// Keeps the contacts a step starts from (all that begin() reads of the
@@ -286,6 +288,7 @@ class ContactSet {
   std::vector<NodeContact> start_nodes_;  ///< keepStart()'s
   std::vector<int> slot_;  ///< per node: index in nodes_, -1 if not in contact
   std::vector<int> released_;  ///< nodes released this step (cycling guard)
+  std::vector<char> pulled_;   ///< per node: let go for pulling, not found on a surface since
   int passes_ = 0;             ///< updates this step
   int held_pulls_ = 0;         ///< heldPulls()
   bool slide_held_pulls_ = false;

@@ -369,19 +369,30 @@ TEST(DefaultFriction, OneNewtonIterationStopsASlideWithoutPushingItBack) {
 
 // The same on a cloth dropped onto a table (config/scenes/drop32.yaml: bdf2
 // at dt 1/160, one Newton iteration): its skirts swing and settle without a
-// step that gains energy.
-TEST(DefaultFriction, AClothSettlingOnATableUnderOneNewtonIterationRejectsNoStep) {
+// step that gains energy. Once it rests, its wrinkles' nodes just above the
+// table are not predicted onto it at every step (ContactSet::begin): each was
+// pulled down against its springs and let go, a contact pass more a step
+// (3.0 passes a step in the last second, 2.05 now).
+TEST(DefaultFriction, AClothSettlingOnATableRejectsNoStepAndRestsInFewPasses) {
   Scene s = loadScene(std::string(CLOTH_SIM_SOURCE_DIR) + "/config/scenes/drop32.yaml");
   ASSERT_EQ(s.solver.newton_max_iterations, 1);
   Simulation sim(s);
-  int rejected = 0;
-  while (sim.time() < 1.0 - 1e-9) {
+  int rejected = 0, late_steps = 0, late_passes = 0;
+  while (sim.time() < 3.0 - 1e-9) {
     const StepStats st = sim.step();
     ASSERT_TRUE(st.ok) << "t = " << sim.time() << ": " << st.failure;
     rejected += st.rejected;
+    if (sim.time() > 2.0) {
+      ++late_steps;
+      late_passes += st.contact_passes;
+    }
   }
   EXPECT_EQ(rejected, 0);
   EXPECT_GT(sim.lastStats().contacts, 100);  // it lies on the table
+  const double passes = static_cast<double>(late_passes) / late_steps;
+  EXPECT_LT(passes, 2.6);
+  std::printf("[ drop32   ] %d rejected sub-steps, %.2f contact passes a step at rest\n", rejected,
+              passes);
 }
 
 // Contact hard case c3: a cloth on a table dragged by one corner at 1 m/s
