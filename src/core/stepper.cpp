@@ -344,7 +344,7 @@ StepStats Stepper::newtonSolve(const Model& model, double h, double beta, const 
     // descent's drag too: with f1' (0 beyond eps) its one solve holds a
     // slide's friction constant, and a node that stops within the step is
     // pushed back (drop64 under bdf2: 100 steps gained energy in 3 s,
-    // 482 CG iterations a step; with the drag none, 141; docs/design.md).
+    // 482 CG iterations a step; with the drag none, 115; docs/design.md).
     contact_.setFrictionSolve(decrement_stop_ > 0.0 || energy_stop_ || max_iterations == 1
                                   ? ContactSet::FrictionSolve::Descent
                                   : ContactSet::FrictionSolve::Newton);
