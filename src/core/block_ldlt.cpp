@@ -176,7 +176,7 @@ namespace {
 // multiplies and 6 adds a scalar chain; they are most of a Cholesky-
 // preconditioned CG iteration (the hard cases: half of a newton step).
 
-/// L y = y in place (column order: column j's blocks update the rows below).
+/// y = L^-1 y in place (column order: column j's blocks update the rows below).
 CLOTH_SIM_VECTORISED
 void forwardKernel(int n, const int* __restrict start, const int* __restrict rows,
                    const double* __restrict l, double* __restrict y) {
@@ -192,7 +192,7 @@ void forwardKernel(int n, const int* __restrict start, const int* __restrict row
   }
 }
 
-/// y = D^-1 y, then L^T y = y in place (column j gathers the rows below it).
+/// y = D^-1 y, then y = L^-T y in place (column j gathers the rows below it).
 /// Two sets of sums, so the chains of adds are half as long.
 CLOTH_SIM_VECTORISED
 void backwardKernel(int n, const int* __restrict start, const int* __restrict rows,
