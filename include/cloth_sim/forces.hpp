@@ -17,8 +17,9 @@ SpringParams springParams(const Model& model, const Spring& s);
 /// f = m g - c_air v + spring forces (3n). `damping_axes` (one unit vector
 /// per spring, or null): along-spring damping acts along these instead of
 /// the springs' current axes (newton's held axes, Stepper::newtonSolve).
+/// `threads`: solver.threads (the same f on any number).
 void computeForces(const Model& model, const VecX& x, const VecX& v, VecX& f,
-                   const std::vector<Vec3>* damping_axes = nullptr);
+                   const std::vector<Vec3>* damping_axes = nullptr, int threads = 1);
 
 /// Fills A = M - a df/dv - b df/dx (pinned rows are handled by the solver),
 /// and in the same spring sweep f(x, v) and, if w is given, df/dx * w.
@@ -28,7 +29,8 @@ void computeForces(const Model& model, const VecX& x, const VecX& v, VecX& f,
 void assembleSystem(const Model& model, const VecX& x, const VecX& v, double a, double b,
                     bool project_compression, SystemMatrix& A, VecX& f,
                     const VecX* w = nullptr, VecX* dfdx_w = nullptr,
-                    const std::vector<Vec3>* damping_axes = nullptr, bool split_out = false);
+                    const std::vector<Vec3>* damping_axes = nullptr, bool split_out = false,
+                    int threads = 1);
 
 /// Each spring's current unit axis (d / |d|, or its rest direction when
 /// degenerate) at positions x, into axes (one per spring).

@@ -99,6 +99,7 @@ struct CgWorkspace {
   int grid_rows = 0, grid_cols = 0;
   /// Solves one multigrid hierarchy may serve (MultigridPreconditioner::prepare); 1: rebuilt every solve.
   int multigrid_max_solves = 1;
+  int threads = 1;  ///< solver.threads, for the multigrid (the product's are the matrix's)
   int last_iterations = 0;
   int factorizations = 0;  ///< count, for the benchmark
   /// Reused Cholesky factors that went stale in a row, and solves left that

@@ -177,6 +177,12 @@ class MultigridPreconditioner {
   /// the split and join ride on the copies in and out of the V-cycle.
   void applySplit(const double* r, double* z);
 
+  /// Threads the V-cycle's large levels run on (solver.threads). With more
+  /// than one, a level's smoother relaxes its parts (bands of whole grid
+  /// rows) side by side: Gauss-Seidel within a part, the couplings across
+  /// parts taken from the sweep's start (hybrid Gauss-Seidel). The backward
+  /// sweep is still the forward one's transpose, so the V-cycle stays SPD.
+  void setThreads(int threads);
   int numLevels() const { return static_cast<int>(levels_.size()); }
   /// Grid size of a level (0 = the cloth).
   int levelRows(int level) const { return levels_[level].rows; }
@@ -207,6 +213,10 @@ class MultigridPreconditioner {
     // block index + num_nodes; -1: counted by its mirror pair).
     std::vector<int> galerkin_target;
     VecX x, b, r;  ///< V-cycle buffers
+    // Threads: the smoother's parts (node ranges of whole grid rows, each
+    // relaxed by its own thread; empty: one), per row the first lower block
+    // within its part, and the rows coupled to an earlier part.
+    std::vector<int> part_start, inner_begin, cross_rows;
   };
 
   void checkGrid(const SystemMatrix& A, int rows, int cols) const;
@@ -224,6 +234,11 @@ class MultigridPreconditioner {
   bool prepareSmoother(Level& level) const;
   bool factorCoarsest();
   void vcycle(int level);
+  /// Gauss-Seidel over the level's rows (forward from x = 0, or backward),
+  /// each part on its own thread where the level has parts.
+  void relax(Level& level, bool forward, const SymBlock* inv);
+  /// The level's parts for threads_ (none below parallel::kMinNodes).
+  void partition(Level& level) const;
 
   std::vector<Level> levels_;
   // constrain(): the finest level's smoother blocks with the projected
@@ -254,6 +269,7 @@ class MultigridPreconditioner {
   const Spring* springs_key_ = nullptr;
   std::vector<char> free_key_;
   bool ready_ = false;
+  int threads_ = 1;
   // Reuse state: the finest node blocks' traces the coarse levels were built from, solves
   // since then, the first solve's iterations.
   std::vector<double> built_trace_;

@@ -96,6 +96,12 @@ struct Scene {
     int newton_max_iterations = 20;
     int max_halvings = 8;          ///< recovery: a rejected step splits at most this deep
     bool recovery = true;
+    /// Threads a step's large loops run on (the spring sweeps, the matrix
+    /// product, the multigrid's smoother and transfers; OpenMP), 1..64. The
+    /// one-thread answer is the reference: more threads give the same answer
+    /// except through the multigrid smoother (its parts are relaxed side by
+    /// side), within the CG tolerance.
+    int threads = 1;
     /// Error-controlled stepping (step_size_control.hpp): when set, each
     /// step's local position error estimate, RMS over the free nodes and
     /// relative to the cloth's diagonal, is held within error_tolerance * h / 1 s

@@ -38,16 +38,21 @@ class PaddedTerms {
   void addSums(double* y_split) const;
   /// y = m x + a's and b's differences (m per node, x and y split by
   /// component; b may be null): two directions and the node blocks of a
-  /// product in one pass.
+  /// product in one pass. Nodes [first, last) (last < 0: all).
   static void sumDifferences(const double* m, const double* x_split, const PaddedTerms& a,
-                             const PaddedTerms* b, double* y_split);
-  /// y += a's and b's differences (b may be null).
-  static void addPairDifferences(const PaddedTerms& a, const PaddedTerms* b, double* y_split);
+                             const PaddedTerms* b, double* y_split, int first = 0,
+                             int last = -1);
+  /// y += a's and b's differences (b may be null), nodes [first, last).
+  static void addPairDifferences(const PaddedTerms& a, const PaddedTerms* b, double* y_split,
+                                 int first = 0, int last = -1);
   /// y = (y, or 0 with `from_zero`) + terms[0]'s differences + terms[1]'s
   /// + ..., added in that order (so the same as addDifferences of each in
   /// turn) in one pass; 3 components, count up to kMaxDirections.
   static void addDifferencesOfAll(const PaddedTerms* terms, int count, bool from_zero,
                                   double* y_split);
+  /// The same for nodes [first, last) of y only.
+  static void addDifferencesOfAll(const PaddedTerms* terms, int count, bool from_zero,
+                                  double* y_split, int first, int last);
   static constexpr int kMaxDirections = 8;
 
  private:
@@ -96,6 +101,8 @@ struct ForceSweepOut {
 /// The forces (and, with `iso`, the coupling coefficients b K + a D) of one
 /// direction's springs: spring_forces.hpp's formulas, slot by slot.
 void forceSweep(const ForceSweepIn& in, const ForceSweepOut& out);
+/// The same for slots [first, last) only (each slot's result as forceSweep's).
+void forceSweep(const ForceSweepIn& in, const ForceSweepOut& out, int first, int last);
 
 /// Sum over the direction's springs of (l - L)^2, and the largest l / L - 1
 /// (or `max_strain` if larger); with `length`, each slot's l there.

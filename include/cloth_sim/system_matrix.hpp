@@ -160,6 +160,8 @@ class SystemMatrix {
   /// (assembleSystem with the compression projection: twice b k + a c of
   /// each direction's group). Any later change of the couplings drops it;
   /// without it there are no relaxed products.
+  /// Threads the product runs on (solver.threads); the same y on any count.
+  void setThreads(int threads) { threads_ = threads; }
   void setPsdCouplingBound(double bound) const {
     psd_coupling_bound_ = bound;
     ratio_valid_ = false;
@@ -184,6 +186,8 @@ class SystemMatrix {
   void multiplySplitDouble(const double* x, double* y) const;
   void multiplySplitSingle(const double* x, double* y,
                            const float* x_single) const;  // system_matrix_single.cpp
+  void multiplySplitSingleParts(int parts, const double* x, double* y,
+                                const float* x_single) const;  // on `parts` threads
   void makeSingleCopies() const;
   void sizeSingleCopies() const;  ///< single_dirs_ for this layout (terms' pads zero)
   std::shared_ptr<const SpringLayout> layout_;
@@ -220,6 +224,7 @@ class SystemMatrix {
   mutable bool ratio_valid_ = false;
   mutable double psd_coupling_bound_ = INFINITY;  ///< setPsdCouplingBound's
   std::pair<double, double> node_scale_range_{0.0, 0.0};  ///< smallest, largest (reset)
+  int threads_ = 1;
 };
 
 inline SymBlock SystemMatrix::couplingBlock(int spring) const {

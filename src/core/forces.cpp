@@ -6,7 +6,10 @@
 #include <limits>
 #include <memory>
 
+#include <omp.h>
+
 #include "cloth_sim/spring_sweeps.hpp"
+#include "parallel.hpp"
 
 namespace cloth_sim {
 
@@ -48,6 +51,9 @@ struct SweepBuffers {
   VecX measured_x;
   std::shared_ptr<const SpringLayout> measured_layout;
   bool x_is_measured = false;
+  // Each direction's sweep, set up before the sweeps run (on any thread).
+  std::vector<sweeps::ForceSweepIn> sweep_in;
+  std::vector<sweeps::ForceSweepOut> sweep_out;
 };
 
 SweepBuffers& sweepBuffers() {
@@ -75,7 +81,8 @@ void externalForcesSplit(const Model& model, const double* v, double* f) {
 /// `split_out`, f and dfdx_w come out split by component.
 void springSweeps(const Model& model, const VecX& x, const VecX& v, double a, double b,
                   bool project_compression, SystemMatrix* A, VecX& f, const VecX* w,
-                  VecX* dfdx_w, const std::vector<Vec3>* damping_axes, bool split_out = false) {
+                  VecX* dfdx_w, const std::vector<Vec3>* damping_axes, bool split_out,
+                  int threads) {
   const SpringLayout& layout = *model.layout;
   const int n = layout.num_nodes;
   const size_t size = 3 * static_cast<size_t>(n);
@@ -117,12 +124,16 @@ void springSweeps(const Model& model, const VecX& x, const VecX& v, double a, do
     if (A) A->useDampingAxes();
   }
   bool single_written = A && !layout.directions.empty();
-  buf.f_terms.resize(layout.directions.size());
-  if (w) buf.kw_terms.resize(layout.directions.size());
-  for (size_t d = 0; d < layout.directions.size(); ++d) {
+  const int directions = static_cast<int>(layout.directions.size());
+  buf.f_terms.resize(directions);
+  if (w) buf.kw_terms.resize(directions);
+  buf.sweep_in.resize(directions);
+  buf.sweep_out.resize(directions);
+  for (int d = 0; d < directions; ++d) {
     const SpringDirection& dir = layout.directions[d];
     const SpringGroup& g = model.groups[static_cast<int>(dir.type)];
-    sweeps::ForceSweepIn in;
+    sweeps::ForceSweepIn& in = buf.sweep_in[d];
+    in = sweeps::ForceSweepIn();
     in.slots = dir.slots;
     in.offset = dir.offset;
     for (int c = 0; c < 3; ++c) {
@@ -141,7 +152,8 @@ void springSweeps(const Model& model, const VecX& x, const VecX& v, double a, do
     in.project_compression = project_compression;
     in.a = a;
     in.b = b;
-    sweeps::ForceSweepOut out;
+    sweeps::ForceSweepOut& out = buf.sweep_out[d];
+    out = sweeps::ForceSweepOut();
     buf.f_terms[d].ensure(n, dir.offset);
     if (w) buf.kw_terms[d].ensure(n, dir.offset);
     for (int c = 0; c < 3; ++c) {
@@ -149,7 +161,7 @@ void springSweeps(const Model& model, const VecX& x, const VecX& v, double a, do
       if (w) out.kw[c] = buf.kw_terms[d].term(c);
     }
     if (A) {
-      SystemMatrix::Coefficients& co = A->coefficients(static_cast<int>(d));
+      SystemMatrix::Coefficients& co = A->coefficients(d);
       out.iso = co.iso.data();
       out.axis = co.axis.data();
       for (int c = 0; c < 3; ++c) out.u[c] = co.u[c].data();
@@ -158,7 +170,7 @@ void springSweeps(const Model& model, const VecX& x, const VecX& v, double a, do
         for (int c = 0; c < 3; ++c) out.hw[c] = co.w[c].data();
       }
       // Float copies where the last matrix took float products.
-      float* single = A->singleCoefficients(static_cast<int>(d));
+      float* single = A->singleCoefficients(d);
       single_written = single_written && single;
       if (single) {
         out.iso_single = single;
@@ -166,14 +178,36 @@ void springSweeps(const Model& model, const VecX& x, const VecX& v, double a, do
         for (int c = 0; c < 3; ++c) out.u_single[c] = single + (2 + c) * n;
       }
     }
-    sweeps::forceSweep(in, out);
   }
   // Every direction's terms into the node sums in one pass each (the
   // external forces first, then the directions in turn, as one pass a
-  // direction added them).
-  const int count = static_cast<int>(layout.directions.size());
-  sweeps::PaddedTerms::addDifferencesOfAll(buf.f_terms.data(), count, false, buf.f.data());
-  if (w) sweeps::PaddedTerms::addDifferencesOfAll(buf.kw_terms.data(), count, true, buf.kw.data());
+  // direction added them). With threads, each takes a range of slots in
+  // every direction, then (after all terms are written) a range of nodes.
+  const int parts = parallel::partsFor(threads, n);
+  if (parts == 1) {
+    for (int d = 0; d < directions; ++d) sweeps::forceSweep(buf.sweep_in[d], buf.sweep_out[d]);
+    sweeps::PaddedTerms::addDifferencesOfAll(buf.f_terms.data(), directions, false, buf.f.data());
+    if (w) {
+      sweeps::PaddedTerms::addDifferencesOfAll(buf.kw_terms.data(), directions, true,
+                                               buf.kw.data());
+    }
+  } else {
+#pragma omp parallel num_threads(parts)
+    {
+      int first = 0, last = n;
+      parallel::range(omp_get_thread_num(), omp_get_num_threads(), n, &first, &last);
+      for (int d = 0; d < directions; ++d) {
+        sweeps::forceSweep(buf.sweep_in[d], buf.sweep_out[d], first, last);
+      }
+#pragma omp barrier
+      sweeps::PaddedTerms::addDifferencesOfAll(buf.f_terms.data(), directions, false,
+                                               buf.f.data(), first, last);
+      if (w) {
+        sweeps::PaddedTerms::addDifferencesOfAll(buf.kw_terms.data(), directions, true,
+                                                 buf.kw.data(), first, last);
+      }
+    }
+  }
   if (single_written) A->singleWritten();
   if (split_out) {  // the caller works on split vectors: no join
     f.swap(buf.f);
@@ -187,18 +221,20 @@ void springSweeps(const Model& model, const VecX& x, const VecX& v, double a, do
 }  // namespace
 
 void computeForces(const Model& model, const VecX& x, const VecX& v, VecX& f,
-                   const std::vector<Vec3>* damping_axes) {
-  springSweeps(model, x, v, 0.0, 0.0, false, nullptr, f, nullptr, nullptr, damping_axes);
+                   const std::vector<Vec3>* damping_axes, int threads) {
+  springSweeps(model, x, v, 0.0, 0.0, false, nullptr, f, nullptr, nullptr, damping_axes, false,
+               threads);
 }
 
 void assembleSystem(const Model& model, const VecX& x, const VecX& v, double a, double b,
                     bool project_compression, SystemMatrix& A, VecX& f, const VecX* w,
-                    VecX* dfdx_w, const std::vector<Vec3>* damping_axes, bool split_out) {
+                    VecX* dfdx_w, const std::vector<Vec3>* damping_axes, bool split_out,
+                    int threads) {
   A.resize(model.layout);
   A.reset(model.mass, a * model.air_drag);
   if (dfdx_w) dfdx_w->resize(x.size());
   springSweeps(model, x, v, a, b, project_compression, &A, f, dfdx_w ? w : nullptr, dfdx_w,
-               damping_axes, split_out);
+               damping_axes, split_out, threads);
   if (project_compression && a >= 0.0 && b >= 0.0) {
     // Projected, a slot's block is b k ((1 - t) u u^T + t I) with t in [0, 1]
     // plus a c on I, an axis or a held axis: PSD, |iso| + |axis| + |c| =

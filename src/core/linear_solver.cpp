@@ -444,6 +444,7 @@ CgResult conjugateGradient(const SystemMatrix& A, const std::vector<Spring>& spr
     correctForPairs(filter, dim, ws);
   } else if (preconditioner == Preconditioner::Multigrid) {
     if (!ws.multigrid) ws.multigrid = std::make_shared<MultigridPreconditioner>();
+    ws.multigrid->setThreads(ws.threads);
     if (!ws.multigrid->prepare(A, springs, free, ws.grid_rows, ws.grid_cols,
                                ws.multigrid_max_solves)) {
       if (split) x.swap(ws.x);

@@ -81,85 +81,6 @@ int findColumn(const std::vector<int>& begin, const std::vector<int>& column, in
   return (it != last && *it == j) ? static_cast<int>(it - column.begin()) : -1;
 }
 
-// The V-cycle's loops, built for AVX2/FMA too (vectorised.hpp): the block
-// products are scalar chains, and FMA shortens both their latency and their
-// instruction count (hang64: the V-cycle is ~40 % of the step).
-
-/// One Gauss-Seidel relaxation of rows i in [first, last) stepping by `step`
-/// (+1 forward, -1 backward; relaxRows picks the direction): row i solved from s = b_i + r_i minus its
-/// lower blocks' x_j (j < i), then x_i's coupling scattered into r_j, so r
-/// gathers -sum_{j > i} A_ij x_j for the rows still to come. x_i = inv_i s.
-///
-/// The forward sweep (from x = 0) needs r neither read nor zeroed first:
-/// nothing has been scattered into r_i when row i comes (its upper
-/// neighbours come later), so row i starts from b_i and sets r_i to zero
-/// for their scatters; the backward sweep takes r zeroed.
-template <bool kForward>
-inline __attribute__((always_inline)) void relaxRowsIn(
-    int first, int last, int step, const int* __restrict begin, const int* __restrict column,
-    const SymBlock* __restrict lower, const SymBlock* __restrict inv, const double* __restrict b,
-    double* __restrict x, double* __restrict r) {
-  for (int i = first; i != last; i += step) {
-    double s[3] = {b[3 * i], b[3 * i + 1], b[3 * i + 2]};
-    if constexpr (kForward) {
-      r[3 * i] = r[3 * i + 1] = r[3 * i + 2] = 0.0;
-    } else {
-      s[0] += r[3 * i], s[1] += r[3 * i + 1], s[2] += r[3 * i + 2];
-    }
-    for (int k = begin[i]; k < begin[i + 1]; ++k) lower[k].subtractProduct(x + 3 * column[k], s);
-    inv[i].multiply(s, x + 3 * i);
-    for (int k = begin[i]; k < begin[i + 1]; ++k) lower[k].subtractProduct(x + 3 * i, r + 3 * column[k]);
-  }
-}
-
-CLOTH_SIM_VECTORISED
-void relaxRows(bool forward, int n, const int* __restrict begin, const int* __restrict column,
-               const SymBlock* __restrict lower, const SymBlock* __restrict inv,
-               const double* __restrict b, double* __restrict x, double* __restrict r) {
-  if (forward) {
-    relaxRowsIn<true>(0, n, 1, begin, column, lower, inv, b, x, r);
-  } else {
-    relaxRowsIn<false>(n - 1, -1, -1, begin, column, lower, inv, b, x, r);
-  }
-}
-
-/// coarse = P^T fine (restriction), by P^T's rows (restrict_begin/node/
-/// weight): each coarse entry summed once from its fine nodes, no zeroing
-/// pass and no read-modify-write per interpolation entry.
-CLOTH_SIM_VECTORISED
-void restrictToCoarse(int nc, const int* __restrict begin, const int* __restrict node,
-                      const double* __restrict weight, const double* __restrict fine,
-                      double* __restrict coarse) {
-  for (int I = 0; I < nc; ++I) {
-    double c0 = 0.0, c1 = 0.0, c2 = 0.0;
-    for (int a = begin[I]; a < begin[I + 1]; ++a) {
-      const double* f = fine + 3 * node[a];
-      const double w = weight[a];
-      c0 += w * f[0];
-      c1 += w * f[1];
-      c2 += w * f[2];
-    }
-    coarse[3 * I] = c0, coarse[3 * I + 1] = c1, coarse[3 * I + 2] = c2;
-  }
-}
-
-/// fine += P coarse (prolongation of the coarse correction).
-CLOTH_SIM_VECTORISED
-void prolongToFine(int n, const int* __restrict interp_begin, const int* __restrict node,
-                   const double* __restrict weight, const double* __restrict coarse,
-                   double* __restrict fine) {
-  for (int i = 0; i < n; ++i) {
-    double* f = fine + 3 * i;
-    for (int a = interp_begin[i]; a < interp_begin[i + 1]; ++a) {
-      const double* c = coarse + 3 * node[a];
-      const double w = weight[a];
-      f[0] += w * c[0];
-      f[1] += w * c[1];
-      f[2] += w * c[2];
-    }
-  }
-}
-
 /// The finest level's refill from one direction's springs (fillFinest):
 /// each spring's S at both ends (2S, and 4S in the middle, where rerouted)
 /// and -S (-2S on each half) on its lower blocks. Built for AVX2/FMA too: a
@@ -410,6 +331,7 @@ void MultigridPreconditioner::buildHierarchy(const SystemMatrix& A,
     level.b.setZero(3 * level.num_nodes);
     level.r.setZero(3 * level.num_nodes);
   }
+  for (Level& level : levels_) partition(level);
   buildCoarseSolver();
   rows_ = rows;
   cols_ = cols;
@@ -632,98 +554,6 @@ void MultigridPreconditioner::recordSolve(int iterations) {
   } else if (iterations > kIterationGrowth * first_iterations_) {
     rebuild_due_ = true;
   }
-}
-
-void MultigridPreconditioner::vcycle(int l) {
-  Level& level = levels_[l];
-  const int n = level.num_nodes;
-  if (l + 1 == numLevels()) {
-    coarse_ldlt_.solve(level.b, level.x);
-    for (int i = 0; i < n; ++i) {
-      if (!level.free[i]) level.x.segment<3>(3 * i).setZero();
-    }
-    return;
-  }
-  VecX& x = level.x;
-  VecX& r = level.r;
-  const bool projected = l == 0 && !projected_.empty();
-  const SymBlock* inv = projected ? constrained_inv_.data() : level.inv_node_block.data();
-  // S v on the projected nodes (the finest level, constrained).
-  auto project = [&](VecX& v) {
-    double t[3];
-    for (size_t k = 0; k < projected_.size(); ++k) {
-      double* vi = v.data() + 3 * projected_[k];
-      projector_[k].multiply(vi, t);
-      vi[0] = t[0], vi[1] = t[1], vi[2] = t[2];
-    }
-  };
-
-  // Forward Gauss-Seidel from x = 0. Row i's equation then holds exactly with
-  // the new x_j (j < i) and x_j = 0 (j > i), so the residual is
-  // r_i = -sum_{j > i} A_ij x_j: gathered from later rows as they are solved.
-  relaxRows(true, n, level.lower_begin.data(), level.lower_column.data(),
-            level.lower_block.data(), inv, level.b.data(), x.data(), r.data());
-
-  // Coarse correction: x += P A_c^-1 P^T r (A_c^-1 by the next V-cycle).
-  if (projected) project(r);
-  Level& coarse = levels_[l + 1];
-  restrictToCoarse(coarse.num_nodes, level.restrict_begin.data(), level.restrict_node.data(),
-                   level.restrict_weight.data(), r.data(), coarse.b.data());
-  vcycle(l + 1);
-  prolongToFine(n, level.interp_begin.data(), level.interp_node.data(),
-                level.interp_weight.data(), coarse.x.data(), x.data());
-  if (projected) project(x);  // x was in the range of S before the correction
-
-  // Backward Gauss-Seidel (the forward sweep's transpose): rows j > i are
-  // already new; their part -sum_{j > i} A_ij x_j is scattered into r as
-  // each row is solved, the old x_j (j < i) are gathered.
-  r.setZero();
-  relaxRows(false, n, level.lower_begin.data(), level.lower_column.data(),
-            level.lower_block.data(), inv, level.b.data(), x.data(), r.data());
-}
-
-void MultigridPreconditioner::constrain(const ConstraintFilter& filter) {
-  projected_.clear();
-  projector_.clear();
-  if (!ready_ || !filter.hasProjections()) return;
-  const Level& finest = levels_.front();
-  constrained_inv_ = finest.inv_node_block;
-  for (int i : filter.projectedNodes()) {
-    if (!finest.free[i]) continue;
-    const Mat3 S = filter.projector(i);
-    // As block Jacobi's projected block, kept on the range of S.
-    constrained_inv_[i] =
-        SymBlock::from(S * projectedBlock(finest.node_block[i].toMat3(), S).inverse() * S);
-    projected_.push_back(i);
-    projector_.push_back(SymBlock::from(S));
-  }
-}
-
-void MultigridPreconditioner::applySplit(const double* r, double* z) {
-  if (!ready_) throw std::logic_error("multigrid preconditioner applied before a successful setup");
-  Level& finest = levels_.front();
-  const int n = finest.num_nodes;
-  double* b = finest.b.data();
-  for (int i = 0; i < n; ++i) {
-    const bool f = finest.free[i];
-    for (int c = 0; c < 3; ++c) b[3 * i + c] = f ? r[c * n + i] : 0.0;
-  }
-  vcycle(0);
-  const double* x = finest.x.data();
-  for (int c = 0; c < 3; ++c) {
-    for (int i = 0; i < n; ++i) z[c * n + i] = x[3 * i + c];
-  }
-}
-
-void MultigridPreconditioner::apply(const VecX& r, VecX& z) {
-  if (!ready_) throw std::logic_error("multigrid preconditioner applied before a successful setup");
-  Level& finest = levels_.front();
-  finest.b = r;
-  for (int i = 0; i < finest.num_nodes; ++i) {
-    if (!finest.free[i]) finest.b.segment<3>(3 * i).setZero();
-  }
-  vcycle(0);
-  z = finest.x;
 }
 
 }  // namespace cloth_sim

@@ -8,6 +8,7 @@ namespace cloth_sim {
 namespace scene_yaml {
 namespace {
 constexpr int kMaxHalvings = 30;  // dt / 2^30 is far below any useful step
+constexpr int kMaxThreads = 64;
 }  // namespace
 
 void readSolver(const YAML::Node& node, Scene::Solver* solver) {
@@ -15,7 +16,7 @@ void readSolver(const YAML::Node& node, Scene::Solver* solver) {
                  {"method", "dt", "tolerance", "max_iterations", "preconditioner",
                   "multigrid_reuse", "project_compression", "newton_tolerance",
                   "newton_max_iterations", "max_halvings", "recovery", "error_tolerance",
-                  "dt_min", "dt_max"});
+                  "dt_min", "dt_max", "threads"});
   // No method named: the fast path (automaticSolver), under what is named.
   if (!f.has("method")) {
     *solver = automaticSolver();
@@ -66,6 +67,7 @@ void readSolver(const YAML::Node& node, Scene::Solver* solver) {
     solver->max_halvings = readInt(f.get("max_halvings"), f.path("max_halvings"));
   }
   if (f.has("recovery")) solver->recovery = readBool(f.get("recovery"), f.path("recovery"));
+  if (f.has("threads")) solver->threads = readInt(f.get("threads"), f.path("threads"));
   if (f.has("error_tolerance")) {
     solver->error_tolerance = readNumber(f.get("error_tolerance"), f.path("error_tolerance"));
   }
@@ -91,6 +93,11 @@ void validateSolver(const Scene::Solver& solver) {
   if (solver.max_halvings > kMaxHalvings) {
     fail("solver.max_halvings", "must be <= " + std::to_string(kMaxHalvings) + ", got " +
                                     std::to_string(solver.max_halvings));
+  }
+  requireAtLeast(solver.threads, 1, "solver.threads");
+  if (solver.threads > kMaxThreads) {
+    fail("solver.threads", "must be <= " + std::to_string(kMaxThreads) + ", got " +
+                               std::to_string(solver.threads));
   }
   if (!solver.error_tolerance) return;
   requireFraction(*solver.error_tolerance, "solver.error_tolerance");

@@ -66,19 +66,23 @@ inline __attribute__((always_inline)) void twoDifferences(
   }
 }
 
+/// Nodes [first, last) of n.
 CLOTH_SIM_VECTORISED
-void sumTwoDirections(int n, const double* m, const double* x, const double* ta, int oa,
-                      int pa, const double* tb, int ob, int pb, double* y) {
+void sumTwoDirections(int first, int last, int n, const double* m, const double* x,
+                      const double* ta, int oa, int pa, const double* tb, int ob, int pb,
+                      double* y) {
   for (int c = 0; c < 3; ++c) {
-    twoDifferences<true>(n, m, x + c * n, ta + c * pa, oa, tb + c * pb, ob, y + c * n);
+    twoDifferences<true>(last - first, m + first, x + c * n + first, ta + c * pa + first, oa,
+                         tb + c * pb + first, ob, y + c * n + first);
   }
 }
 
 CLOTH_SIM_VECTORISED
-void addTwoDirections(int n, const double* ta, int oa, int pa, const double* tb, int ob, int pb,
-                      double* y) {
+void addTwoDirections(int first, int last, int n, const double* ta, int oa, int pa,
+                      const double* tb, int ob, int pb, double* y) {
   for (int c = 0; c < 3; ++c) {
-    twoDifferences<false>(n, nullptr, nullptr, ta + c * pa, oa, tb + c * pb, ob, y + c * n);
+    twoDifferences<false>(last - first, nullptr, nullptr, ta + c * pa + first, oa,
+                          tb + c * pb + first, ob, y + c * n + first);
   }
 }
 
@@ -301,21 +305,27 @@ void PaddedTerms::addDifferences(double* y_split) const {
 
 void PaddedTerms::addDifferencesOfAll(const PaddedTerms* terms, int count, bool from_zero,
                                       double* y_split) {
+  if (count > 0) addDifferencesOfAll(terms, count, from_zero, y_split, 0, terms[0].n_);
+}
+
+void PaddedTerms::addDifferencesOfAll(const PaddedTerms* terms, int count, bool from_zero,
+                                      double* y_split, int first, int last) {
   if (count > kMaxDirections) {  // in turns of kMaxDirections
-    addDifferencesOfAll(terms, kMaxDirections, from_zero, y_split);
-    addDifferencesOfAll(terms + kMaxDirections, count - kMaxDirections, false, y_split);
+    addDifferencesOfAll(terms, kMaxDirections, from_zero, y_split, first, last);
+    addDifferencesOfAll(terms + kMaxDirections, count - kMaxDirections, false, y_split, first,
+                        last);
     return;
   }
-  if (count <= 0) return;
+  if (count <= 0 || last <= first) return;
   const int n = terms[0].n_;
   const double* t[kMaxDirections];
   int o[kMaxDirections];
   for (int c = 0; c < 3; ++c) {
     for (int k = 0; k < count; ++k) {
-      t[k] = terms[k].data_ + c * terms[k].padded_;
+      t[k] = terms[k].data_ + c * terms[k].padded_ + first;
       o[k] = terms[k].offset_;
     }
-    differencesOfAllDispatch(n, count, t, o, from_zero, y_split + c * n);
+    differencesOfAllDispatch(last - first, count, t, o, from_zero, y_split + c * n + first);
   }
 }
 
@@ -328,19 +338,54 @@ void PaddedTerms::addSums(double* y_split) const {
 // A missing second direction is a zero one: offset 0 on the first's terms
 // (t[p] - t[p] = 0), so one loop serves odd counts too.
 void PaddedTerms::sumDifferences(const double* m, const double* x_split, const PaddedTerms& a,
-                                 const PaddedTerms* b, double* y_split) {
+                                 const PaddedTerms* b, double* y_split, int first, int last) {
   const PaddedTerms& bb = b ? *b : a;
-  sumTwoDirections(a.n_, m, x_split, a.data_, a.offset_, a.padded_, bb.data_,
+  if (last < 0) last = a.n_;
+  sumTwoDirections(first, last, a.n_, m, x_split, a.data_, a.offset_, a.padded_, bb.data_,
                    b ? bb.offset_ : 0, bb.padded_, y_split);
 }
 
-void PaddedTerms::addPairDifferences(const PaddedTerms& a, const PaddedTerms* b, double* y_split) {
+void PaddedTerms::addPairDifferences(const PaddedTerms& a, const PaddedTerms* b, double* y_split,
+                                     int first, int last) {
   const PaddedTerms& bb = b ? *b : a;
-  addTwoDirections(a.n_, a.data_, a.offset_, a.padded_, bb.data_, b ? bb.offset_ : 0,
-                   bb.padded_, y_split);
+  if (last < 0) last = a.n_;
+  addTwoDirections(first, last, a.n_, a.data_, a.offset_, a.padded_, bb.data_,
+                   b ? bb.offset_ : 0, bb.padded_, y_split);
 }
 
 void forceSweep(const ForceSweepIn& in, const ForceSweepOut& out) { forceSweepDispatch(in, out); }
+
+void forceSweep(const ForceSweepIn& in, const ForceSweepOut& out, int first, int last) {
+  last = std::min(last, in.slots);
+  if (last <= first) return;
+  // Every array is indexed by slot (p, and p + offset for the upper end's
+  // node): slot `first` becomes slot 0.
+  auto from = [first](auto* p) { return p ? p + first : p; };
+  ForceSweepIn part = in;
+  ForceSweepOut to = out;
+  part.slots = last - first;
+  for (int c = 0; c < 3; ++c) {
+    part.x[c] = from(in.x[c]);
+    part.v[c] = from(in.v[c]);
+    part.w[c] = from(in.w[c]);
+    part.held[c] = from(in.held[c]);
+    part.rest_dir[c] = from(in.rest_dir[c]);
+    to.f[c] = from(out.f[c]);
+    to.kw[c] = from(out.kw[c]);
+    to.u[c] = from(out.u[c]);
+    to.hw[c] = from(out.hw[c]);
+    to.u_single[c] = from(out.u_single[c]);
+  }
+  part.valid = from(in.valid);
+  part.rest_length = from(in.rest_length);
+  part.length = from(in.length);
+  to.iso = from(out.iso);
+  to.axis = from(out.axis);
+  to.c = from(out.c);
+  to.iso_single = from(out.iso_single);
+  to.axis_single = from(out.axis_single);
+  forceSweepDispatch(part, to);
+}
 
 void energySweep(int slots, int offset, const double* const x[3], const double* valid,
                  const double* rest_length, const double* inv_rest_length, double* sum_sq,

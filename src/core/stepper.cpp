@@ -28,7 +28,7 @@ bool hasSpringDamping(const Model& model) {
 
 void Stepper::forces(const Model& model, const VecX& x, const VecX& v, VecX& f,
                      const std::vector<Vec3>* damping_axes) const {
-  computeForces(model, x, v, f, damping_axes);
+  computeForces(model, x, v, f, damping_axes, settings_.threads);
   if (repulsion_) repulsion_->addForces(x, v, f);
 }
 
@@ -36,7 +36,7 @@ void Stepper::assemble(const Model& model, const VecX& x, const VecX& v, double 
                        const VecX* w, VecX* dfdx_w, const std::vector<Vec3>* damping_axes,
                        bool linearized) {
   assembleSystem(model, x, v, a, b, settings_.project_compression && !exact_hessian_, A_, f_, w,
-                 dfdx_w, damping_axes);
+                 dfdx_w, damping_axes, false, settings_.threads);
   // CG's relaxed float products (linear_solver.cpp) only without contact:
   // sound there too (the answer meets the tolerance), but another answer
   // within it took the contact hard case c4 (a cloth stiffened on a table,
@@ -83,6 +83,8 @@ void Stepper::setPins(const Model& model, const PinnedEnds& pins) {
   cg_.grid_cols = model.cols;
   cg_.reroute_bends = true;
   cg_.multigrid_max_solves = settings_.multigrid_reuse;
+  cg_.threads = settings_.threads;
+  A_.setThreads(settings_.threads);
 }
 
 StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
@@ -651,7 +653,7 @@ double Stepper::incrementalPotential(const Model& model, double bh, const VecX& 
 StepStats Stepper::symplecticEuler(const Model& model, double h, VecX& x, VecX& v) {
   StepStats stats;
   auto t0 = Clock::now();
-  computeForces(model, x, v, f_);
+  computeForces(model, x, v, f_, nullptr, settings_.threads);
   for (int i = 0; i < model.numNodes(); ++i) {
     if (!filter_.isEliminated(i)) v.segment<3>(3 * i) += (h / model.mass[i]) * f_.segment<3>(3 * i);
   }

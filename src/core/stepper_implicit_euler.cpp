@@ -69,7 +69,7 @@ StepStats Stepper::implicitEulerSplit(const Model& model, double h, VecX& x, Vec
   const int n = model.numNodes();
   auto t0 = Clock::now();
   assembleSystem(model, x, v, h, h * h, settings_.project_compression && !exact_hessian_, A_,
-                 f_split_, &v, &kv_split_, nullptr, /*split_out=*/true);
+                 f_split_, &v, &kv_split_, nullptr, /*split_out=*/true, settings_.threads);
   rhs_split_ = h * (f_split_ + h * kv_split_);
   filter_.applySplit(rhs_split_.data());
   stats.assembly_s = secondsSince(t0);

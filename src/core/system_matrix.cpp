@@ -2,8 +2,11 @@
 
 #include <algorithm>
 
+#include <omp.h>
+
 #include "cloth_sim/spring_sweeps.hpp"
 #include "direction_terms.hpp"
+#include "parallel.hpp"
 #include "vectorised.hpp"
 
 namespace cloth_sim {
@@ -146,29 +149,54 @@ void SystemMatrix::multiplySplitDouble(const double* xs, double* ys) const {
   const size_t count = coefficients_.size();
   direction_terms_.resize(count);
   const bool held = has_damping_axes_;
-  for (size_t k = 0; k < count; ++k) {
-    const Coefficients& d = coefficients_[k];
-    const int o = layout_->directions[k].offset;
-    sweeps::PaddedTerms& t = direction_terms_[k];
-    t.ensure(n, o);
-    directionTerms(n - o, o, xs, xs + n, xs + 2 * n, d.iso.data(), d.axis.data(), d.u[0].data(),
-                   d.u[1].data(), d.u[2].data(), held ? d.c.data() : nullptr,
-                   held ? d.w[0].data() : nullptr, held ? d.w[1].data() : nullptr,
-                   held ? d.w[2].data() : nullptr, t.term(0), t.term(1), t.term(2));
-  }
-  // The node blocks m I and the directions two at a time: a pass over y per
-  // pair instead of one per direction.
-  if (count == 0) {
-    for (int c = 0; c < 3; ++c) {
-      for (int i = 0; i < n; ++i) ys[c * n + i] = node_scale_[i] * xs[c * n + i];
+  for (size_t k = 0; k < count; ++k) direction_terms_[k].ensure(n, layout_->directions[k].offset);
+  // Slots [first, last) of every direction (slot p: its lower end, node p).
+  auto terms = [&](int first, int last) {
+    for (size_t k = 0; k < count; ++k) {
+      const Coefficients& d = coefficients_[k];
+      const int o = layout_->directions[k].offset;
+      const int end = std::min(last, n - o);
+      if (end <= first) continue;
+      sweeps::PaddedTerms& t = direction_terms_[k];
+      const int f = first;
+      directionTerms(end - f, o, xs + f, xs + n + f, xs + 2 * n + f, d.iso.data() + f,
+                     d.axis.data() + f, d.u[0].data() + f, d.u[1].data() + f, d.u[2].data() + f,
+                     held ? d.c.data() + f : nullptr, held ? d.w[0].data() + f : nullptr,
+                     held ? d.w[1].data() + f : nullptr, held ? d.w[2].data() + f : nullptr,
+                     t.term(0) + f, t.term(1) + f, t.term(2) + f);
     }
-  }
-  for (size_t k = 0; k < count; k += 2) {
-    const sweeps::PaddedTerms* second = k + 1 < count ? &direction_terms_[k + 1] : nullptr;
-    if (k == 0) {
-      sweeps::PaddedTerms::sumDifferences(node_scale_.data(), xs, direction_terms_[k], second, ys);
-    } else {
-      sweeps::PaddedTerms::addPairDifferences(direction_terms_[k], second, ys);
+  };
+  // The node blocks m I and the directions two at a time: a pass over y per
+  // pair instead of one per direction. Nodes [first, last).
+  auto sums = [&](int first, int last) {
+    if (count == 0) {
+      for (int c = 0; c < 3; ++c) {
+        for (int i = first; i < last; ++i) ys[c * n + i] = node_scale_[i] * xs[c * n + i];
+      }
+    }
+    for (size_t k = 0; k < count; k += 2) {
+      const sweeps::PaddedTerms* second = k + 1 < count ? &direction_terms_[k + 1] : nullptr;
+      if (k == 0) {
+        sweeps::PaddedTerms::sumDifferences(node_scale_.data(), xs, direction_terms_[k], second,
+                                            ys, first, last);
+      } else {
+        sweeps::PaddedTerms::addPairDifferences(direction_terms_[k], second, ys, first, last);
+      }
+    }
+  };
+  const int parts = parallel::partsFor(threads_, n);
+  if (parts == 1) {
+    terms(0, n);
+    sums(0, n);
+  } else {
+    // Each entry as one thread computes it: the same product on any count.
+#pragma omp parallel num_threads(parts)
+    {
+      int first = 0, last = n;
+      parallel::range(omp_get_thread_num(), omp_get_num_threads(), n, &first, &last);
+      terms(first, last);
+#pragma omp barrier
+      sums(first, last);
     }
   }
   for (const auto& [node, block] : node_blocks_) {
