@@ -6,8 +6,6 @@
 #include <limits>
 #include <memory>
 
-#include <omp.h>
-
 #include "cloth_sim/spring_sweeps.hpp"
 #include "parallel.hpp"
 
@@ -195,7 +193,7 @@ void springSweeps(const Model& model, const VecX& x, const VecX& v, double a, do
 #pragma omp parallel num_threads(parts)
     {
       int first = 0, last = n;
-      parallel::range(omp_get_thread_num(), omp_get_num_threads(), n, &first, &last);
+      parallel::range(parallel::thread(), parallel::team(), n, &first, &last);
       for (int d = 0; d < directions; ++d) {
         sweeps::forceSweep(buf.sweep_in[d], buf.sweep_out[d], first, last);
       }

@@ -1,8 +1,6 @@
 // The multigrid preconditioner's V-cycle (multigrid.hpp): Gauss-Seidel
 // smoothing, restriction and prolongation, and their split among threads
 // (solver.threads). The hierarchy it runs on is built in multigrid.cpp.
-#include <omp.h>
-
 #include <algorithm>
 #include <stdexcept>
 
@@ -132,12 +130,13 @@ void MultigridPreconditioner::vcycle(int l) {
   // Coarse correction: x += P A_c^-1 P^T r (A_c^-1 by the next V-cycle).
   if (projected) project(r);
   Level& coarse = levels_[l + 1];
-  const int parts = std::max<int>(1, static_cast<int>(level.part_start.size()) - 1);
+  [[maybe_unused]] const int parts =
+      std::max<int>(1, static_cast<int>(level.part_start.size()) - 1);
   // P^T and P are gathers by rows: any split of the rows gives the same sums.
 #pragma omp parallel num_threads(parts) if (parts > 1)
   {
     int first = 0, last = coarse.num_nodes;
-    parallel::range(omp_get_thread_num(), omp_get_num_threads(), coarse.num_nodes, &first, &last);
+    parallel::range(parallel::thread(), parallel::team(), coarse.num_nodes, &first, &last);
     restrictToCoarse(first, last, level.restrict_begin.data(), level.restrict_node.data(),
                      level.restrict_weight.data(), r.data(), coarse.b.data());
   }
@@ -145,7 +144,7 @@ void MultigridPreconditioner::vcycle(int l) {
 #pragma omp parallel num_threads(parts) if (parts > 1)
   {
     int first = 0, last = n;
-    parallel::range(omp_get_thread_num(), omp_get_num_threads(), n, &first, &last);
+    parallel::range(parallel::thread(), parallel::team(), n, &first, &last);
     prolongToFine(first, last, level.interp_begin.data(), level.interp_node.data(),
                   level.interp_weight.data(), coarse.x.data(), x.data());
   }
@@ -187,7 +186,7 @@ void MultigridPreconditioner::relax(Level& level, bool forward, const SymBlock* 
   const int* part = level.part_start.data();
   // (A team smaller than asked takes the parts in turns: every part is relaxed.)
 #pragma omp parallel num_threads(parts)
-  for (int t = omp_get_thread_num(); t < parts; t += omp_get_num_threads()) {
+  for (int t = parallel::thread(); t < parts; t += parallel::team()) {
     relaxRows(forward, part[t], part[t + 1], inner, begin + 1, column, lower, inv, b, x, r);
   }
   if (forward) across();

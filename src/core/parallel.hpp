@@ -7,8 +7,23 @@
 
 #include <algorithm>
 
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
 namespace cloth_sim {
 namespace parallel {
+
+// Inside a `#pragma omp parallel` region: this thread's number and the team's
+// size. Built without OpenMP (the sanitized clang build) the pragmas are
+// ignored and a region runs once, as thread 0 of 1, over every part.
+#ifdef _OPENMP
+inline int thread() { return omp_get_thread_num(); }
+inline int team() { return omp_get_num_threads(); }
+#else
+inline int thread() { return 0; }
+inline int team() { return 1; }
+#endif
 
 /// Below this many nodes a loop stays on one thread: a fork and join costs
 /// a few microseconds, a sweep over 1000 nodes about as much.

@@ -2,8 +2,6 @@
 
 #include <algorithm>
 
-#include <omp.h>
-
 #include "cloth_sim/spring_sweeps.hpp"
 #include "direction_terms.hpp"
 #include "parallel.hpp"
@@ -193,7 +191,7 @@ void SystemMatrix::multiplySplitDouble(const double* xs, double* ys) const {
 #pragma omp parallel num_threads(parts)
     {
       int first = 0, last = n;
-      parallel::range(omp_get_thread_num(), omp_get_num_threads(), n, &first, &last);
+      parallel::range(parallel::thread(), parallel::team(), n, &first, &last);
       terms(first, last);
 #pragma omp barrier
       sums(first, last);

@@ -7,8 +7,6 @@
 #include <algorithm>
 #include <cmath>
 
-#include <omp.h>
-
 #include "cloth_sim/system_matrix.hpp"
 #include "direction_terms.hpp"
 #include "parallel.hpp"
@@ -265,8 +263,8 @@ void SystemMatrix::multiplySplitSingle(const double* xs, double* ys, const float
   multiplyPairTerms(xs, ys);
 }
 
-void SystemMatrix::multiplySplitSingleParts(int parts, const double* xs, double* ys,
-                                            const float* xf) const {
+void SystemMatrix::multiplySplitSingleParts([[maybe_unused]] int parts, const double* xs,
+                                            double* ys, const float* xf) const {
   // multiplySplitSingle's passes on ranges: every direction's terms over a
   // range of slots, then (once all are written) the sums over a range of
   // nodes. Each entry is computed as on one thread.
@@ -278,7 +276,7 @@ void SystemMatrix::multiplySplitSingleParts(int parts, const double* xs, double*
 #pragma omp parallel num_threads(parts)
   {
     int first = 0, last = n;
-    parallel::range(omp_get_thread_num(), omp_get_num_threads(), n, &first, &last);
+    parallel::range(parallel::thread(), parallel::team(), n, &first, &last);
     if (!xf) {
       for (int c = 0; c < 3; ++c) {
         toSingle(last - first, xs + c * n + first, x_single_.data() + c * n + first);
