@@ -186,8 +186,13 @@ class SystemMatrix {
   void multiplySplitDouble(const double* x, double* y) const;
   void multiplySplitSingle(const double* x, double* y,
                            const float* x_single) const;  // system_matrix_single.cpp
-  void multiplySplitSingleParts(int parts, const double* x, double* y,
-                                const float* x_single) const;  // on `parts` threads
+  /// The float product's pieces: direction k's terms for slots [first,
+  /// last), and the sums of directions k, k + 1 for nodes [first, last) (the
+  /// last pair's with y = m x).
+  void singleTerms(size_t k, const float* x_single, int first, int last) const;
+  void singlePairSums(size_t k, int first, int last, const double* x, double* y) const;
+  /// y += the extra node blocks' and the pair terms' products (either product).
+  void addNodeBlocksAndPairTerms(const double* x, double* y) const;
   void makeSingleCopies() const;
   void sizeSingleCopies() const;  ///< single_dirs_ for this layout (terms' pads zero)
   std::shared_ptr<const SpringLayout> layout_;

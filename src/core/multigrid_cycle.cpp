@@ -202,9 +202,10 @@ void MultigridPreconditioner::setThreads(int threads) {
 void MultigridPreconditioner::partition(Level& level) const {
   level.part_start.clear();
   level.cross_rows.clear();
-  level.inner_begin.assign(level.lower_begin.begin(), level.lower_begin.end() - 1);
+  level.inner_begin.clear();
   const int threads = std::min(parallel::partsFor(threads_, level.num_nodes), level.rows);
   if (threads <= 1) return;
+  level.inner_begin.assign(level.lower_begin.begin(), level.lower_begin.end() - 1);
   // Whole grid rows a part, so the couplings across are the two lines at each cut.
   for (int t = 0; t <= threads; ++t) {
     level.part_start.push_back(level.cols * ((level.rows * t) / threads));

@@ -197,6 +197,11 @@ void SystemMatrix::multiplySplitDouble(const double* xs, double* ys) const {
       sums(first, last);
     }
   }
+  addNodeBlocksAndPairTerms(xs, ys);
+}
+
+void SystemMatrix::addNodeBlocksAndPairTerms(const double* xs, double* ys) const {
+  const int n = numNodes();
   for (const auto& [node, block] : node_blocks_) {
     const Vec3 y = block * Vec3(xs[node], xs[n + node], xs[2 * n + node]);
     for (int c = 0; c < 3; ++c) ys[c * n + node] += y[c];

@@ -203,130 +203,85 @@ void SystemMatrix::makeSingleCopies() const {
   single_valid_ = true;
 }
 
+void SystemMatrix::singleTerms(size_t k, const float* x, int first, int last) const {
+  const int n = numNodes();
+  SingleDirection& s = single_dirs_[k];
+  const int o = layout_->directions[k].offset;
+  const int end = std::min(last, n - o);
+  if (end <= first) return;
+  const float* c = s.coefficients.data() + first;
+  const bool held = s.coefficients.size() == 9 * static_cast<size_t>(n);
+  const size_t stride = static_cast<size_t>(n + o);
+  float* t = s.terms.data() + o + first;
+  const float* xp = x + first;
+  directionTermsSingle(end - first, o, xp, xp + n, xp + 2 * n, c, c + n, c + 2 * n, c + 3 * n,
+                       c + 4 * n, held ? c + 5 * n : nullptr, held ? c + 6 * n : nullptr,
+                       held ? c + 7 * n : nullptr, held ? c + 8 * n : nullptr, t, t + stride,
+                       t + 2 * stride);
+}
+
+void SystemMatrix::singlePairSums(size_t k, int first, int last, const double* xs,
+                                  double* ys) const {
+  const int n = numNodes();
+  const size_t count = single_dirs_.size();
+  const bool has_b = k + 1 < count;
+  const int oa = layout_->directions[k].offset;
+  const int ob = has_b ? layout_->directions[k + 1].offset : 0;
+  const size_t stride_a = static_cast<size_t>(n + oa);
+  const size_t stride_b = has_b ? static_cast<size_t>(n + ob) : 0;
+  const float* ta = single_dirs_[k].terms.data() + oa + first;
+  const float* tb = has_b ? single_dirs_[k + 1].terms.data() + ob + first : nullptr;
+  const int m = last - first;
+  for (int comp = 0; comp < 3; ++comp) {
+    const float* a = ta + comp * stride_a;
+    const float* b = tb ? tb + comp * stride_b : nullptr;
+    float* partial = sum_single_.data() + comp * n + first;
+    if (k + 2 >= count) {
+      finishSingle(m, a, oa, b, ob, k == 0 ? nullptr : partial, node_scale_.data() + first,
+                   xs + comp * n + first, ys + comp * n + first);
+    } else {
+      addDifferencesSingle(m, a, oa, b, ob, k == 0, partial);
+    }
+  }
+}
+
 void SystemMatrix::multiplySplitSingle(const double* xs, double* ys, const float* xf) const {
   const int n = numNodes();
   single_used_ = true;
   sum_single_.resize(3 * static_cast<size_t>(n));
   const size_t count = single_dirs_.size();
-  const int parts = parallel::partsFor(threads_, n);
-  if (parts > 1 && count > 0) {
-    multiplySplitSingleParts(parts, xs, ys, xf);
-    return;
-  }
-  if (!xf) {
-    x_single_.resize(3 * static_cast<size_t>(n));
-    toSingle(3 * n, xs, x_single_.data());
-    xf = x_single_.data();
-  }
-  const float* x = xf;
-  float* sum = sum_single_.data();
-  if (count == 0) {
-    for (int i = 0; i < 3 * n; ++i) ys[i] = node_scale_[i % n] * xs[i];
-  }
-  // Two directions' terms at a time, then their differences into the sums
-  // while the terms are still in cache; the last pair's with y = m x.
-  auto terms = [&](size_t k, size_t* stride) {
-    SingleDirection& s = single_dirs_[k];
-    const int o = layout_->directions[k].offset;
-    const float* c = s.coefficients.data();
-    const bool held = s.coefficients.size() == 9 * static_cast<size_t>(n);
-    *stride = static_cast<size_t>(n + o);
-    float* t = s.terms.data() + o;
-    directionTermsSingle(n - o, o, x, x + n, x + 2 * n, c, c + n, c + 2 * n, c + 3 * n,
-                         c + 4 * n, held ? c + 5 * n : nullptr, held ? c + 6 * n : nullptr,
-                         held ? c + 7 * n : nullptr, held ? c + 8 * n : nullptr, t, t + *stride,
-                         t + 2 * *stride);
-    return static_cast<const float*>(t);
-  };
-  for (size_t k = 0; k < count; k += 2) {
-    size_t stride_a = 0, stride_b = 0;
-    const float* ta = terms(k, &stride_a);
-    const float* tb = k + 1 < count ? terms(k + 1, &stride_b) : nullptr;
-    const int oa = layout_->directions[k].offset;
-    const int ob = tb ? layout_->directions[k + 1].offset : 0;
-    const bool last = k + 2 >= count;
-    for (int comp = 0; comp < 3; ++comp) {
-      const float* a = ta + comp * stride_a;
-      const float* b = tb ? tb + comp * stride_b : nullptr;
-      if (last) {
-        finishSingle(n, a, oa, b, ob, k == 0 ? nullptr : sum + comp * n, node_scale_.data(),
-                     xs + comp * n, ys + comp * n);
-      } else {
-        addDifferencesSingle(n, a, oa, b, ob, k == 0, sum + comp * n);
-      }
-    }
-  }
-  for (const auto& [node, block] : node_blocks_) {
-    const Vec3 y = block * Vec3(xs[node], xs[n + node], xs[2 * n + node]);
-    for (int c = 0; c < 3; ++c) ys[c * n + node] += y[c];
-  }
-  multiplyPairTerms(xs, ys);
-}
-
-void SystemMatrix::multiplySplitSingleParts([[maybe_unused]] int parts, const double* xs,
-                                            double* ys, const float* xf) const {
-  // multiplySplitSingle's passes on ranges: every direction's terms over a
-  // range of slots, then (once all are written) the sums over a range of
-  // nodes. Each entry is computed as on one thread.
-  const int n = numNodes();
-  const size_t count = single_dirs_.size();
   if (!xf) x_single_.resize(3 * static_cast<size_t>(n));
   const float* x = xf ? xf : x_single_.data();
-  float* sum = sum_single_.data();
-#pragma omp parallel num_threads(parts)
-  {
-    int first = 0, last = n;
-    parallel::range(parallel::thread(), parallel::team(), n, &first, &last);
-    if (!xf) {
-      for (int c = 0; c < 3; ++c) {
-        toSingle(last - first, xs + c * n + first, x_single_.data() + c * n + first);
-      }
-#pragma omp barrier
-    }
-    for (size_t k = 0; k < count; ++k) {
-      SingleDirection& s = single_dirs_[k];
-      const int o = layout_->directions[k].offset;
-      const int end = std::min(last, n - o);
-      if (end <= first) continue;
-      const float* c = s.coefficients.data() + first;
-      const bool held = s.coefficients.size() == 9 * static_cast<size_t>(n);
-      const size_t stride = static_cast<size_t>(n + o);
-      float* t = s.terms.data() + o + first;
-      const float* xp = x + first;
-      directionTermsSingle(end - first, o, xp, xp + n, xp + 2 * n, c, c + n, c + 2 * n, c + 3 * n,
-                           c + 4 * n, held ? c + 5 * n : nullptr, held ? c + 6 * n : nullptr,
-                           held ? c + 7 * n : nullptr, held ? c + 8 * n : nullptr, t, t + stride,
-                           t + 2 * stride);
-    }
-#pragma omp barrier
-    const int m = last - first;
+  if (count == 0) {
+    for (int i = 0; i < 3 * n; ++i) ys[i] = node_scale_[i % n] * xs[i];
+  } else if (const int parts = parallel::partsFor(threads_, n); parts == 1) {
+    // Two directions' terms at a time, then their differences into the sums
+    // while the terms are still in cache; the last pair's with y = m x.
+    if (!xf) toSingle(3 * n, xs, x_single_.data());
     for (size_t k = 0; k < count; k += 2) {
-      const bool has_b = k + 1 < count;
-      const int oa = layout_->directions[k].offset;
-      const int ob = has_b ? layout_->directions[k + 1].offset : 0;
-      const size_t stride_a = static_cast<size_t>(n + oa);
-      const size_t stride_b = has_b ? static_cast<size_t>(n + ob) : 0;
-      const float* ta = single_dirs_[k].terms.data() + oa + first;
-      const float* tb = has_b ? single_dirs_[k + 1].terms.data() + ob + first : nullptr;
-      const bool last_pair = k + 2 >= count;
-      for (int comp = 0; comp < 3; ++comp) {
-        const float* a = ta + comp * stride_a;
-        const float* b = tb ? tb + comp * stride_b : nullptr;
-        float* partial = sum + comp * n + first;
-        if (last_pair) {
-          finishSingle(m, a, oa, b, ob, k == 0 ? nullptr : partial, node_scale_.data() + first,
-                       xs + comp * n + first, ys + comp * n + first);
-        } else {
-          addDifferencesSingle(m, a, oa, b, ob, k == 0, partial);
+      singleTerms(k, x, 0, n);
+      if (k + 1 < count) singleTerms(k + 1, x, 0, n);
+      singlePairSums(k, 0, n, xs, ys);
+    }
+  } else {
+    // On threads: every direction's terms over a range of slots, then (once
+    // all are written) the sums over a range of nodes; each entry as above.
+#pragma omp parallel num_threads(parts)
+    {
+      int first = 0, last = n;
+      parallel::range(parallel::thread(), parallel::team(), n, &first, &last);
+      if (!xf) {
+        for (int c = 0; c < 3; ++c) {
+          toSingle(last - first, xs + c * n + first, x_single_.data() + c * n + first);
         }
+#pragma omp barrier
       }
+      for (size_t k = 0; k < count; ++k) singleTerms(k, x, first, last);
+#pragma omp barrier
+      for (size_t k = 0; k < count; k += 2) singlePairSums(k, first, last, xs, ys);
     }
   }
-  for (const auto& [node, block] : node_blocks_) {
-    const Vec3 y = block * Vec3(xs[node], xs[n + node], xs[2 * n + node]);
-    for (int c = 0; c < 3; ++c) ys[c * n + node] += y[c];
-  }
-  multiplyPairTerms(xs, ys);
+  addNodeBlocksAndPairTerms(xs, ys);
 }
 
 }  // namespace cloth_sim
