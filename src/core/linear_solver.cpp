@@ -39,13 +39,12 @@ void CholeskyFactor::buildPattern(int n, const std::vector<Spring>& springs, int
   matrix_.resize(3 * n, 3 * n);
   matrix_.setFromTriplets(entries.begin(), entries.end());
   matrix_.makeCompressed();
+  // Column 3 i + c starts at its diagonal entry, node i's block below it.
   diag_index_.resize(9 * n);
+  const int* outer = matrix_.outerIndexPtr();
   for (int i = 0; i < n; ++i) {
     for (int c = 0; c < 3; ++c) {
-      for (int r = c; r < 3; ++r) {
-        diag_index_[9 * i + 3 * c + r] =
-            static_cast<int>(&matrix_.coeffRef(3 * i + r, 3 * i + c) - matrix_.valuePtr());
-      }
+      for (int r = c; r < 3; ++r) diag_index_[9 * i + 3 * c + r] = outer[3 * i + c] + r - c;
     }
   }
   block_a_.assign(9 * springs.size(), -1);
@@ -63,11 +62,15 @@ void CholeskyFactor::buildPattern(int n, const std::vector<Spring>& springs, int
 
 void CholeskyFactor::blockIndices(int a, int b, int* nine) {
   const int hi = std::max(a, b), lo = std::min(a, b);
+  // Column 3 lo + c holds node lo's block from its diagonal down (3 - c
+  // entries), then every block (h, lo), h > lo, whole and in order: block
+  // (hi, lo) sits as far below those in each of its three columns. One
+  // search instead of nine (a heap's self pairs ask this at every factor).
+  const int* outer = matrix_.outerIndexPtr();
+  const int below =
+      static_cast<int>(&matrix_.coeffRef(3 * hi, 3 * lo) - matrix_.valuePtr()) - outer[3 * lo];
   for (int c = 0; c < 3; ++c) {
-    for (int r = 0; r < 3; ++r) {
-      nine[3 * c + r] =
-          static_cast<int>(&matrix_.coeffRef(3 * hi + r, 3 * lo + c) - matrix_.valuePtr());
-    }
+    for (int r = 0; r < 3; ++r) nine[3 * c + r] = outer[3 * lo + c] + below - c + r;
   }
 }
 
