@@ -26,7 +26,14 @@ class BlockLdlt {
   /// Factors `lower` (the analysed pattern, new values). Returns false, and
   /// keeps no factor, where a pivot block is singular or not finite; an
   /// indefinite one is factored on (D then has it), as Eigen's scalar LDL^T did.
+  /// Only the rows of the factor that depend on a row where A differs from
+  /// the last factored matrix are computed again (those rows and their
+  /// ancestors in the elimination tree): a contact pass that changed a few
+  /// nodes' filter refactors those paths. The factor is the same, bit for
+  /// bit, as one made from scratch.
   bool factorize(const Eigen::SparseMatrix<double>& lower);
+  /// Rows the last factorize computed (n_ when made from scratch; for tests).
+  int rowsFactored() const { return rows_factored_; }
   /// z = A^-1 r (needs a successful factorize). z may not alias r.
   void solve(const VecX& r, VecX& z) const;
   /// solve's two halves: y = L^-1 P r (one 3-vector per factor position),
@@ -57,6 +64,9 @@ class BlockLdlt {
   /// fills; the second is -1 unless it sits off the diagonal of a node block.
   std::vector<int> entry_slot_, entry_mirror_;
   std::vector<Mat3> a_blocks_;
+  std::vector<Mat3> factored_blocks_;  ///< a_blocks_ of the last factor made
+  bool factored_ = false;              ///< factored_blocks_ and L, D belong together
+  int rows_factored_ = 0;
   std::vector<int> parent_;                   ///< elimination tree
   std::vector<int> l_start_;                  ///< column j of L: [l_start_[j], l_start_[j+1])
   std::vector<int> l_rows_;                   ///< rows of L's blocks, column by column
@@ -64,6 +74,7 @@ class BlockLdlt {
   std::vector<Mat3> d_inverse_;               ///< D's blocks inverted
   // Factorization scratch (kept to avoid allocating per factorization).
   std::vector<int> l_fill_, pattern_, mark_;
+  std::vector<char> redo_;  ///< rows this factorize computes
   std::vector<Mat3> row_;
   mutable std::vector<Vec3> work_;
   mutable std::vector<Vec3> sparse_work_;  ///< zero outside a forwardSolveSparse

@@ -5,6 +5,7 @@
 #include <Eigen/OrderingMethods>
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <utility>
 
 #include "vectorised.hpp"
@@ -112,6 +113,7 @@ void BlockLdlt::analyzePattern(const Eigen::SparseMatrix<double>& lower) {
     }
   }
   a_blocks_.assign(a_col_.size(), Mat3::Zero());
+  factored_ = false;
 
   // Elimination tree and L's column counts (row k of L: the nodes met walking
   // up the tree from each j of A's row k, as in Eigen's simplicial analysis).
@@ -141,18 +143,39 @@ void BlockLdlt::analyzePattern(const Eigen::SparseMatrix<double>& lower) {
 
 bool BlockLdlt::factorize(const Eigen::SparseMatrix<double>& lower) {
   const int n = n_;
-  for (Mat3& b : a_blocks_) b.setZero();
+  a_blocks_.assign(a_col_.size(), Mat3::Zero());  // (held the factor before last's: swapped)
   const double* values = lower.valuePtr();
   double* slots = a_blocks_.front().data();
   for (size_t e = 0; e < entry_slot_.size(); ++e) {
     slots[entry_slot_[e]] += values[e];
     if (entry_mirror_[e] >= 0) slots[entry_mirror_[e]] += values[e];
   }
+  // Row k of L and D depends on A's row k and on the rows of L in its row
+  // pattern, all descendants of k in the elimination tree. So a row that
+  // changed in A changes its own row of the factor and its ancestors' only;
+  // every other row is the last factor's. (From scratch after an analysis
+  // or a failure.)
+  const bool partial = factored_;
+  factored_ = false;  // until this factor is whole
+  redo_.assign(n, partial ? 0 : 1);
+  if (partial) {
+    for (int k = 0; k < n; ++k) {
+      const int b0 = a_row_start_[k], b1 = a_row_start_[k + 1];
+      if (std::memcmp(&a_blocks_[b0], &factored_blocks_[b0], sizeof(Mat3) * (b1 - b0)) == 0) {
+        continue;
+      }
+      for (int i = k; i >= 0 && !redo_[i]; i = parent_[i]) redo_[i] = 1;
+    }
+  }
+  rows_factored_ = static_cast<int>(std::count(redo_.begin(), redo_.end(), 1));
   std::copy(l_start_.begin(), l_start_.end() - 1, l_fill_.begin());
   std::fill(mark_.begin(), mark_.end(), -1);
   // Up-looking: row k of L from A's row k and the rows above it. With
   // W = L D, W(k, i) = A(k, i) - sum over j < i of W(k, j) L(i, j)^T.
+  // A kept row's entries stay where they are in L's columns (rows
+  // ascending): a redone row first moves each column's fill past them.
   for (int k = 0; k < n; ++k) {
+    if (!redo_[k]) continue;
     int top = n;
     mark_[k] = k;
     for (int b = a_row_start_[k] + 1; b < a_row_start_[k + 1]; ++b) {
@@ -168,6 +191,9 @@ bool BlockLdlt::factorize(const Eigen::SparseMatrix<double>& lower) {
     Mat3 d = a_blocks_[a_row_start_[k]];
     for (; top < n; ++top) {
       const int i = pattern_[top];  // ancestors after descendants
+      if (partial) {
+        while (l_rows_[l_fill_[i]] < k) ++l_fill_[i];  // row k's entry is in the column
+      }
       const Mat3 w = row_[i];
       row_[i].setZero();
       for (int p = l_start_[i]; p < l_fill_[i]; ++p) row_[l_rows_[p]].noalias() -= w * l_blocks_[p].transpose();
@@ -193,6 +219,8 @@ bool BlockLdlt::factorize(const Eigen::SparseMatrix<double>& lower) {
       d_inverse_[k] = sym.inverse();
     }
   }
+  factored_blocks_.swap(a_blocks_);
+  factored_ = true;
   return true;
 }
 
