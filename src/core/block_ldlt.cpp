@@ -141,6 +141,31 @@ void BlockLdlt::analyzePattern(const Eigen::SparseMatrix<double>& lower) {
   work_.assign(n, Vec3::Zero());
 }
 
+namespace {
+
+/// row[rows[p]] -= w L_p^T for p in [begin, end): one column of L updating
+/// the row being factored (3x3 blocks in column order, X(r, c) at 3c + r).
+/// Most of a factorization; built for AVX2/FMA and the baseline (as the
+/// triangular solves below: Eigen's fixed-size product stays scalar here).
+CLOTH_SIM_VECTORISED
+void columnUpdate(int begin, int end, const int* __restrict rows, const double* __restrict l,
+                  const double* __restrict w, double* __restrict row) {
+  const double w0 = w[0], w1 = w[1], w2 = w[2], w3 = w[3], w4 = w[4], w5 = w[5], w6 = w[6],
+               w7 = w[7], w8 = w[8];
+  for (int p = begin; p < end; ++p) {
+    const double* m = l + 9 * static_cast<size_t>(p);
+    double* t = row + 9 * static_cast<size_t>(rows[p]);
+    for (int c = 0; c < 3; ++c) {
+      const double m0 = m[c], m1 = m[3 + c], m2 = m[6 + c];
+      t[3 * c] -= w0 * m0 + w3 * m1 + w6 * m2;
+      t[3 * c + 1] -= w1 * m0 + w4 * m1 + w7 * m2;
+      t[3 * c + 2] -= w2 * m0 + w5 * m1 + w8 * m2;
+    }
+  }
+}
+
+}  // namespace
+
 bool BlockLdlt::factorize(const Eigen::SparseMatrix<double>& lower) {
   const int n = n_;
   a_blocks_.assign(a_col_.size(), Mat3::Zero());  // (held the factor before last's: swapped)
@@ -196,7 +221,9 @@ bool BlockLdlt::factorize(const Eigen::SparseMatrix<double>& lower) {
       }
       const Mat3 w = row_[i];
       row_[i].setZero();
-      for (int p = l_start_[i]; p < l_fill_[i]; ++p) row_[l_rows_[p]].noalias() -= w * l_blocks_[p].transpose();
+      columnUpdate(l_start_[i], l_fill_[i], l_rows_.data(),
+                   reinterpret_cast<const double*>(l_blocks_.data()), w.data(),
+                   reinterpret_cast<double*>(row_.data()));
       const Mat3 l = w * d_inverse_[i];
       d.noalias() -= l * w.transpose();
       l_rows_[l_fill_[i]] = k;
