@@ -55,6 +55,10 @@ struct CandidatePairs {
 struct DistanceCull {
   double below = -1.0;  ///< negative: leave nothing out
   double factor = 1.0;  ///< >= 1
+  /// false: the caller does not read CandidatePairs::culled_bound, which is
+  /// then only a lower bound of it, and the query stops at the first kept
+  /// pair (by distance) that no node's motion so far can bring within reach.
+  bool exact_bound = true;
 };
 
 /// An axis-aligned box.
@@ -97,6 +101,7 @@ class SpatialHash {
   void buildTable(const std::vector<Box>& boxes, Table* table);
   /// Grows node_box_ by pad in place and builds tri_box_ and edge_box_ from it.
   void padBoxes(const CollisionMesh& mesh, double pad);
+  void mergeElementBoxes(const CollisionMesh& mesh);
   /// Every non-adjacent pair whose boxes (node_box_ grown by pad) overlap,
   /// into kept_ (sorted, unique).
   void hashPairs(const CollisionMesh& mesh, double pad);
@@ -123,10 +128,44 @@ class SpatialHash {
   bool kept_valid_ = false;
   size_t kept_triangles_ = 0, kept_edges_ = 0;  ///< the mesh they were found on
   CandidatePairs kept_;
-  /// The last hashing's x0, and each kept pair's distance there
-  VecX kept_reference_;
-  std::vector<double> kept_point_triangle_distance_, kept_edge_edge_distance_;
+  VecX kept_reference_;  ///< the last hashing's x0
   std::vector<double> moved_;  ///< a query's node displacements from the reference
+  /// The kept pairs with their distances there: in kept_'s order, and
+  /// binned by distance (a counting sort: bin b holds [b w, (b + 1) w), the
+  /// last the rest, NaN the first), so that a culling query whose reach is
+  /// small scans only the near bins.
+  struct KeptPair {
+    double distance;
+    int a, b;   ///< (node, triangle) or (edge, edge)
+    int index;  ///< in kept_'s list
+  };
+  static constexpr int kDistanceBins = 64;
+  double bin_width_ = 1.0;
+  /// A lower bound of the distances in bin b.
+  double binNearest(int b) const { return b * bin_width_ * (1.0 - 1e-9); }
+  std::vector<KeptPair> point_triangle_measured_, edge_edge_measured_;
+  std::vector<KeptPair> point_triangle_binned_, edge_edge_binned_;
+  std::vector<int> point_triangle_bins_, edge_edge_bins_;  ///< kDistanceBins + 1 starts
+  /// A culling query's bounds (filterKept).
+  struct Cull {
+    double below, factor;
+    double reach;   ///< no pair's bound is below its distance less this
+    double culled;  ///< the smallest bound left out so far
+    bool exact_bound;
+    /// Whether the pair is left out (its bound then taken into culled).
+    bool leftOut(double distance, double moved);
+  };
+  /// filterKept with culling, node boxes padded: every kept pair in kept_'s
+  /// order, or the near bins' pairs (element boxes merged as needed).
+  void filterInOrder(const CollisionMesh& mesh, Cull* c, CandidatePairs* out);
+  void filterByDistance(const CollisionMesh& mesh, Cull* c, CandidatePairs* out);
+  /// Element boxes merged by filterByDistance: the query that last made each.
+  std::vector<long> tri_box_query_, edge_box_query_;
+  long box_query_ = 0;
+  /// filterByDistance's answer as kept_ indices, and the query that last
+  /// chose each kept pair (to list a large answer in kept_'s order).
+  std::vector<int> chosen_;
+  std::vector<long> point_triangle_chosen_, edge_edge_chosen_;
   long hashed_ = 0, reused_ = 0;
 };
 

@@ -214,7 +214,7 @@ int SelfCollision::find(int i) {
 void SelfCollision::detect(const VecX& x0, const VecX& x1, bool skip_zones) {
   hits_.clear();
   hash_.findPairs(mesh_, x0, x1, separation_, &pairs_,
-                  DistanceCull{kCcdReported * separation_, kCcdCullFactor});
+                  DistanceCull{kCcdReported * separation_, kCcdCullFactor, false});
   std::array<Vec3, 4> a0, a1;
   auto test = [&](int kind, int a, int b) {
     const std::array<int, 4> nodes = nodesOf(kind, a, b);
@@ -384,7 +384,7 @@ SelfCollisionResult SelfCollision::apply(const Model& model, double h, const Vec
 
   // 1. Proximity at the end of the step.
   const double proximity = proximity_ * thickness_;
-  hash_.findPairs(mesh_, x0, x1, proximity, &pairs_, DistanceCull{proximity, 1.0});
+  hash_.findPairs(mesh_, x0, x1, proximity, &pairs_, DistanceCull{proximity, 1.0, false});
   result.candidates = static_cast<int>(pairs_.point_triangle.size() + pairs_.edge_edge.size());
   close_.clear();
   std::array<Vec3, 4> at, start;
@@ -500,7 +500,7 @@ SelfCollisionResult SelfCollision::apply(const Model& model, double h, const Vec
 void SelfCollision::repulsionTerms(const Model& model, const VecX& x0, const VecX& x1,
                                    double reach, double scale, SelfRepulsion* out) {
   out->clear();
-  hash_.findPairs(mesh_, x0, x1, reach, &pairs_, DistanceCull{reach, kRepulsionCullFactor});
+  hash_.findPairs(mesh_, x0, x1, reach, &pairs_, DistanceCull{reach, kRepulsionCullFactor, false});
   // Every candidate first, then per node the nearest and one on its other
   // side (below): a choice that does not depend on the order the hash lists
   // pairs in. Chosen as they came (a side judged against whichever term held

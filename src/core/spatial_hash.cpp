@@ -138,10 +138,11 @@ void SpatialHash::findPairs(const CollisionMesh& mesh, const VecX& x0, const Vec
 }
 
 void SpatialHash::padBoxes(const CollisionMesh& mesh, double pad) {
-  const int n = mesh.num_nodes;
-  for (int i = 0; i < n; ++i) {
-    node_box_[i] = Box{node_box_[i].lo.array() - pad, node_box_[i].hi.array() + pad};
-  }
+  for (Box& b : node_box_) b = Box{b.lo.array() - pad, b.hi.array() + pad};
+  mergeElementBoxes(mesh);
+}
+
+void SpatialHash::mergeElementBoxes(const CollisionMesh& mesh) {
   tri_box_.resize(mesh.triangles.size());
   for (size_t k = 0; k < mesh.triangles.size(); ++k) {
     const Eigen::Vector3i& t = mesh.triangles[k];
@@ -206,63 +207,192 @@ void SpatialHash::hashPairs(const CollisionMesh& mesh, double pad) {
 void SpatialHash::measureKept(const CollisionMesh& mesh) {
   const VecX& x = kept_reference_;
   auto at = [&](int i) { return x.segment<3>(3 * i); };
-  kept_point_triangle_distance_.resize(kept_.point_triangle.size());
+  point_triangle_measured_.resize(kept_.point_triangle.size());
   for (size_t k = 0; k < kept_.point_triangle.size(); ++k) {
     const auto& [node, tri] = kept_.point_triangle[k];
     const Eigen::Vector3i& t = mesh.triangles[tri];
-    kept_point_triangle_distance_[k] = pointTriangleDistance(at(node), at(t[0]), at(t[1]), at(t[2]));
+    point_triangle_measured_[k] = {pointTriangleDistance(at(node), at(t[0]), at(t[1]), at(t[2])),
+                                   node, tri, static_cast<int>(k)};
   }
-  kept_edge_edge_distance_.resize(kept_.edge_edge.size());
+  edge_edge_measured_.resize(kept_.edge_edge.size());
   for (size_t k = 0; k < kept_.edge_edge.size(); ++k) {
-    const Eigen::Vector2i& a = mesh.edges[kept_.edge_edge[k].first];
-    const Eigen::Vector2i& b = mesh.edges[kept_.edge_edge[k].second];
-    kept_edge_edge_distance_[k] = edgeEdgeDistance(at(a[0]), at(a[1]), at(b[0]), at(b[1]));
+    const auto& [ea, eb] = kept_.edge_edge[k];
+    const Eigen::Vector2i& a = mesh.edges[ea];
+    const Eigen::Vector2i& b = mesh.edges[eb];
+    edge_edge_measured_[k] = {edgeEdgeDistance(at(a[0]), at(a[1]), at(b[0]), at(b[1])), ea, eb,
+                              static_cast<int>(k)};
   }
+  // Bins an eighth of the kept pad wide: a query's reach is about its pad.
+  bin_width_ = std::max(kept_pad_ / 8.0, 1e-12);
+  auto binOf = [&](double d) {
+    if (std::isnan(d)) return 0;  // never left out: scanned first
+    if (!(d < kDistanceBins * bin_width_)) return kDistanceBins - 1;
+    return std::min(static_cast<int>(d / bin_width_), kDistanceBins - 1);
+  };
+  // A counting sort into the bins.
+  auto place = [&](const std::vector<KeptPair>& measured, std::vector<KeptPair>* binned,
+                   std::vector<int>* start) {
+    start->assign(kDistanceBins + 1, 0);
+    for (const KeptPair& p : measured) ++(*start)[binOf(p.distance) + 1];
+    for (int b = 0; b < kDistanceBins; ++b) (*start)[b + 1] += (*start)[b];
+    std::vector<int> fill(start->begin(), start->end() - 1);
+    binned->resize(measured.size());
+    for (const KeptPair& p : measured) (*binned)[fill[binOf(p.distance)]++] = p;
+  };
+  place(point_triangle_measured_, &point_triangle_binned_, &point_triangle_bins_);
+  place(edge_edge_measured_, &edge_edge_binned_, &edge_edge_bins_);
+}
+
+bool SpatialHash::Cull::leftOut(double distance, double moved) {
+  // The bound beyond reach first (no displacement needed), then the pair's.
+  if (!exact_bound && distance - reach > below) {
+    culled = std::min(culled, distance - reach);
+    return true;
+  }
+  const double bound = distance - factor * moved;
+  if (!(bound > below)) return false;
+  culled = std::min(culled, bound);
+  return true;
 }
 
 void SpatialHash::filterKept(const CollisionMesh& mesh, const VecX& x0, const VecX& x1,
                              double pad, const DistanceCull& cull, CandidatePairs* out) {
-  padBoxes(mesh, pad);  // as a fresh query makes them (same arithmetic: same answer)
-  const bool culling = cull.below >= 0.0;
-  if (culling) {
-    const int n = mesh.num_nodes;
-    moved_.resize(n);
-    for (int i = 0; i < n; ++i) {
-      const auto ref = kept_reference_.segment<3>(3 * i);
-      moved_[i] = std::sqrt(std::max((x0.segment<3>(3 * i) - ref).squaredNorm(),
-                                     (x1.segment<3>(3 * i) - ref).squaredNorm()));
+  if (!(cull.below >= 0.0)) {
+    padBoxes(mesh, pad);  // as a fresh query makes them (same arithmetic: same answer)
+    for (const auto& [node, tri] : kept_.point_triangle) {
+      if (node_box_[node].overlaps(tri_box_[tri])) out->point_triangle.emplace_back(node, tri);
     }
+    for (const auto& [a, b] : kept_.edge_edge) {
+      if (edge_box_[a].overlaps(edge_box_[b])) out->edge_edge.emplace_back(a, b);
+    }
+    return;
+  }
+  const int n = mesh.num_nodes;
+  moved_.resize(n);
+  double most_moved = 0.0;
+  for (int i = 0; i < n; ++i) {
+    node_box_[i] = Box{node_box_[i].lo.array() - pad, node_box_[i].hi.array() + pad};
+    const auto ref = kept_reference_.segment<3>(3 * i);
+    moved_[i] = std::sqrt(std::max((x0.segment<3>(3 * i) - ref).squaredNorm(),
+                                   (x1.segment<3>(3 * i) - ref).squaredNorm()));
+    most_moved = std::max(most_moved, moved_[i]);
   }
   // A pair is left out only when its bound clears `below` by more than the
-  // round-off of the distances and displacements it is made of.
-  const double below = cull.below * (1.0 + 1e-9) + 1e-12;
-  auto leftOut = [&](double distance, double moved) {
-    const double bound = distance - cull.factor * moved;
-    if (!(bound > below)) return false;
-    out->culled_bound = std::min(out->culled_bound, bound);
-    return true;
+  // round-off of the distances and displacements it is made of. No pair's
+  // bound is below its distance less `reach` (neither side moved more than
+  // most_moved; rounding is monotone).
+  Cull c;
+  c.below = cull.below * (1.0 + 1e-9) + 1e-12;
+  c.factor = cull.factor;
+  c.reach = cull.factor * (most_moved + most_moved);
+  c.exact_bound = cull.exact_bound;
+  c.culled = out->culled_bound;
+  // The pairs in the bins before the first that lies wholly beyond reach:
+  // when they are many (a cloth moving far since the hashing), one pass in
+  // kept order, its boxes merged at once and its answer in order, is cheaper.
+  int near = 1;
+  while (near < kDistanceBins && !(binNearest(near) - c.reach > c.below)) ++near;
+  const size_t near_pairs = point_triangle_bins_[near] + edge_edge_bins_[near];
+  if (4 * near_pairs > kept_.point_triangle.size() + kept_.edge_edge.size()) {
+    filterInOrder(mesh, &c, out);
+  } else {
+    filterByDistance(mesh, &c, out);
+  }
+  out->culled_bound = c.culled;
+}
+
+void SpatialHash::filterInOrder(const CollisionMesh& mesh, Cull* c, CandidatePairs* out) {
+  mergeElementBoxes(mesh);
+  for (const KeptPair& p : point_triangle_measured_) {
+    if (!node_box_[p.a].overlaps(tri_box_[p.b])) continue;
+    const Eigen::Vector3i& t = mesh.triangles[p.b];
+    const double moved = moved_[p.a] + std::max({moved_[t[0]], moved_[t[1]], moved_[t[2]]});
+    if (!c->leftOut(p.distance, moved)) out->point_triangle.emplace_back(p.a, p.b);
+  }
+  for (const KeptPair& p : edge_edge_measured_) {
+    if (!edge_box_[p.a].overlaps(edge_box_[p.b])) continue;
+    const Eigen::Vector2i& ea = mesh.edges[p.a];
+    const Eigen::Vector2i& eb = mesh.edges[p.b];
+    const double moved = std::max(moved_[ea[0]], moved_[ea[1]]) + std::max(moved_[eb[0]], moved_[eb[1]]);
+    if (!c->leftOut(p.distance, moved)) out->edge_edge.emplace_back(p.a, p.b);
+  }
+}
+
+void SpatialHash::filterByDistance(const CollisionMesh& mesh, Cull* c, CandidatePairs* out) {
+  // Element boxes merged when a pair first needs one (the same boxes).
+  ++box_query_;
+  tri_box_.resize(mesh.triangles.size());
+  tri_box_query_.resize(mesh.triangles.size(), -1);
+  edge_box_.resize(mesh.edges.size());
+  edge_box_query_.resize(mesh.edges.size(), -1);
+  auto triBox = [&](int k) -> const Box& {
+    if (tri_box_query_[k] != box_query_) {
+      const Eigen::Vector3i& t = mesh.triangles[k];
+      tri_box_[k] = merge(merge(node_box_[t[0]], node_box_[t[1]]), node_box_[t[2]]);
+      tri_box_query_[k] = box_query_;
+    }
+    return tri_box_[k];
   };
-  for (size_t k = 0; k < kept_.point_triangle.size(); ++k) {
-    const auto& [node, tri] = kept_.point_triangle[k];
-    if (!node_box_[node].overlaps(tri_box_[tri])) continue;
-    if (culling) {
-      const Eigen::Vector3i& t = mesh.triangles[tri];
-      const double moved = moved_[node] + std::max({moved_[t[0]], moved_[t[1]], moved_[t[2]]});
-      if (leftOut(kept_point_triangle_distance_[k], moved)) continue;
+  auto edgeBox = [&](int k) -> const Box& {
+    if (edge_box_query_[k] != box_query_) {
+      edge_box_[k] = merge(node_box_[mesh.edges[k][0]], node_box_[mesh.edges[k][1]]);
+      edge_box_query_[k] = box_query_;
     }
-    out->point_triangle.emplace_back(node, tri);
-  }
-  for (size_t k = 0; k < kept_.edge_edge.size(); ++k) {
-    const auto& [a, b] = kept_.edge_edge[k];
-    if (!edge_box_[a].overlaps(edge_box_[b])) continue;
-    if (culling) {
-      const Eigen::Vector2i& ea = mesh.edges[a];
-      const Eigen::Vector2i& eb = mesh.edges[b];
-      const double moved = std::max(moved_[ea[0]], moved_[ea[1]]) + std::max(moved_[eb[0]], moved_[eb[1]]);
-      if (leftOut(kept_edge_edge_distance_[k], moved)) continue;
+    return edge_box_[k];
+  };
+  // Bin by bin, nearest first. From a bin whose nearest distance less reach
+  // clears below, every pair is left out: the scan stops there (with the
+  // exact bound only once that also cannot lower the smallest bound so far).
+  auto scan = [&](const std::vector<KeptPair>& binned, const std::vector<int>& bins, auto&& visit) {
+    for (int b = 0; b < kDistanceBins; ++b) {
+      const double nearest = binNearest(b) - c->reach;
+      if (b > 0 && nearest > c->below && (!c->exact_bound || nearest >= c->culled)) {
+        c->culled = std::min(c->culled, nearest);  // (exact bound: no change)
+        return;
+      }
+      for (int k = bins[b]; k < bins[b + 1]; ++k) visit(binned[k]);
     }
-    out->edge_edge.emplace_back(a, b);
-  }
+  };
+  // The answer in kept_'s order (pair order): a few chosen indices sorted,
+  // many listed by a pass over the kept pairs.
+  auto emit = [&](const std::vector<std::pair<int, int>>& kept, std::vector<long>* chosen_at,
+                  std::vector<std::pair<int, int>>* answer) {
+    if (chosen_.size() * 16 < kept.size()) {
+      std::sort(chosen_.begin(), chosen_.end());
+      for (int k : chosen_) answer->push_back(kept[k]);
+    } else {
+      chosen_at->resize(kept.size(), -1);
+      for (int k : chosen_) (*chosen_at)[k] = box_query_;
+      for (size_t k = 0; k < kept.size(); ++k) {
+        if ((*chosen_at)[k] == box_query_) answer->push_back(kept[k]);
+      }
+    }
+  };
+  chosen_.clear();
+  scan(point_triangle_binned_, point_triangle_bins_, [&](const KeptPair& p) {
+    if (!c->exact_bound && p.distance - c->reach > c->below) {
+      c->leftOut(p.distance, 0.0);  // beyond reach: no box needed
+      return;
+    }
+    if (!node_box_[p.a].overlaps(triBox(p.b))) return;
+    const Eigen::Vector3i& t = mesh.triangles[p.b];
+    const double moved = moved_[p.a] + std::max({moved_[t[0]], moved_[t[1]], moved_[t[2]]});
+    if (!c->leftOut(p.distance, moved)) chosen_.push_back(p.index);
+  });
+  emit(kept_.point_triangle, &point_triangle_chosen_, &out->point_triangle);
+  chosen_.clear();
+  scan(edge_edge_binned_, edge_edge_bins_, [&](const KeptPair& p) {
+    if (!c->exact_bound && p.distance - c->reach > c->below) {
+      c->leftOut(p.distance, 0.0);
+      return;
+    }
+    if (!edgeBox(p.a).overlaps(edgeBox(p.b))) return;
+    const Eigen::Vector2i& ea = mesh.edges[p.a];
+    const Eigen::Vector2i& eb = mesh.edges[p.b];
+    const double moved = std::max(moved_[ea[0]], moved_[ea[1]]) + std::max(moved_[eb[0]], moved_[eb[1]]);
+    if (!c->leftOut(p.distance, moved)) chosen_.push_back(p.index);
+  });
+  emit(kept_.edge_edge, &edge_edge_chosen_, &out->edge_edge);
 }
 
 }  // namespace cloth_sim

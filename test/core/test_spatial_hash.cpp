@@ -119,8 +119,9 @@ TEST(SpatialHash, DistanceCullLeavesOutOnlyPairsThatStayBeyondItsReach) {
     VecX x0 = model.rest_positions;
     for (int k = 0; k < x0.size(); ++k) x0[k] += crumple * u(rng);
     VecX x1 = x0;
-    SpatialHash kept, fresh;
+    SpatialHash kept, fresh, stopping;
     kept.setReuseMargin(0.01);
+    stopping.setReuseMargin(0.01);
     size_t found = 0, left_out = 0;
     for (int query = 0; query < 6; ++query) {
       for (int k = 0; k < x1.size(); ++k) x1[k] += 0.002 * u(rng);
@@ -129,6 +130,13 @@ TEST(SpatialHash, DistanceCullLeavesOutOnlyPairsThatStayBeyondItsReach) {
       CandidatePairs a, b;
       kept.findPairs(mesh, x0, x1, gap, &a, DistanceCull{below, 1.0});
       fresh.findPairs(mesh, x0, x1, gap, &b);
+      // Without the exact bound the scan stops early: the same pairs, and a
+      // bound no higher than the exact one.
+      CandidatePairs c;
+      stopping.findPairs(mesh, x0, x1, gap, &c, DistanceCull{below, 1.0, false});
+      EXPECT_EQ(c.point_triangle, a.point_triangle);
+      EXPECT_EQ(c.edge_edge, a.edge_edge);
+      EXPECT_LE(c.culled_bound, a.culled_bound);
       found += b.point_triangle.size() + b.edge_edge.size();
       double nearest = std::numeric_limits<double>::infinity();
       auto check = [&](const std::array<int, 4>& nodes, bool point_triangle) {
