@@ -135,6 +135,8 @@ class Simulation {
   int colliderIndex(const std::string& name) const;
   /// Nodes in contact at the end of the last step.
   std::vector<int> contactNodes() const { return stepper_.contacts().contactNodes(); }
+  /// Cholesky factorizations the stepper made since it was (re)made.
+  int factorizations() const { return stepper_.factorizations(); }
   /// Deepest any node went inside surface + thickness, over every step (m).
   double maxPenetration() const { return max_penetration_; }
   /// Smallest distance between non-adjacent parts of the cloth at the end of

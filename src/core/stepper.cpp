@@ -49,6 +49,22 @@ void Stepper::assemble(const Model& model, const VecX& x, const VecX& v, double 
 CgResult Stepper::solveLinear(const Model& model, const VecX& b, VecX& x, double tolerance,
                               bool split) {
   if (!(tolerance > 0.0)) tolerance = settings_.tolerance;
+  if (mass_dominated_ && preconditioner_ == Preconditioner::Cholesky) {
+    CgResult cg = conjugateGradient(A_, model.springs, filter_, b, x, Preconditioner::BlockJacobi,
+                                    tolerance,
+                                    std::min(settings_.max_iterations, kMassDominatedIterations),
+                                    cg_, split);
+    if (cg.converged) return cg;
+    // Stiffer than kappa says (self-repulsion, contact): the factor, on from
+    // where block Jacobi got to, and for the next steps too.
+    mass_dominated_ = false;
+    mass_dominated_backoff_ = kMassDominatedBackoff;
+    const int spent = cg.iterations;
+    cg = conjugateGradient(A_, model.springs, filter_, b, x, preconditioner_, tolerance,
+                           settings_.max_iterations, cg_, split);
+    cg.iterations += spent;
+    return cg;
+  }
   const bool trial = settings_.preconditioner == Preconditioner::Auto &&
                      preconditioner_ != strongerPreconditioner(model);
   const int cap = trial ? std::min(settings_.max_iterations,
@@ -93,6 +109,11 @@ StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
   const auto start = Clock::now();
   setPins(model, pins);
   preconditioner_ = auto_.choose(settings_.preconditioner, model, h, !colliders.empty());
+  // A factor where the matrix is all but its block diagonal (the masses)
+  // costs more than it saves: block Jacobi first there (solveLinear).
+  if (mass_dominated_backoff_ > 0) --mass_dominated_backoff_;
+  mass_dominated_ = preconditioner_ == Preconditioner::Cholesky && mass_dominated_backoff_ == 0 &&
+                    autoStiffness(model, h) <= kMassDominatedKappa;
   const Method method = as.value_or(settings_.method);
   method_ = method;
   contact_on_ = !colliders.empty();
