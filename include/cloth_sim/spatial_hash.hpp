@@ -101,6 +101,8 @@ class SpatialHash {
   void buildTable(const std::vector<Box>& boxes, Table* table);
   /// Grows node_box_ by pad in place and builds tri_box_ and edge_box_ from it.
   void padBoxes(const CollisionMesh& mesh, double pad);
+  void padNodeBoxes(double pad);
+  /// tri_box_ and edge_box_ from node_box_ as it is.
   void mergeElementBoxes(const CollisionMesh& mesh);
   /// Every non-adjacent pair whose boxes (node_box_ grown by pad) overlap,
   /// into kept_ (sorted, unique).
@@ -152,9 +154,15 @@ class SpatialHash {
     double reach;   ///< no pair's bound is below its distance less this
     double culled;  ///< the smallest bound left out so far
     bool exact_bound;
+    /// Without the exact bound: whether the pair is left out whatever its
+    /// nodes' moves (distance less reach taken into culled).
+    bool beyondReach(double distance);
     /// Whether the pair is left out (its bound then taken into culled).
     bool leftOut(double distance, double moved);
   };
+  /// The most a kept pair's nodes moved since the hashing, one side plus the other.
+  double pointTriangleMoved(const CollisionMesh& mesh, int node, int tri) const;
+  double edgeEdgeMoved(const CollisionMesh& mesh, int a, int b) const;
   /// filterKept with culling, node boxes padded: every kept pair in kept_'s
   /// order, or the near bins' pairs (element boxes merged as needed).
   void filterInOrder(const CollisionMesh& mesh, Cull* c, CandidatePairs* out);

@@ -138,8 +138,12 @@ void SpatialHash::findPairs(const CollisionMesh& mesh, const VecX& x0, const Vec
 }
 
 void SpatialHash::padBoxes(const CollisionMesh& mesh, double pad) {
-  for (Box& b : node_box_) b = Box{b.lo.array() - pad, b.hi.array() + pad};
+  padNodeBoxes(pad);
   mergeElementBoxes(mesh);
+}
+
+void SpatialHash::padNodeBoxes(double pad) {
+  for (Box& b : node_box_) b = Box{b.lo.array() - pad, b.hi.array() + pad};
 }
 
 void SpatialHash::mergeElementBoxes(const CollisionMesh& mesh) {
@@ -243,12 +247,13 @@ void SpatialHash::measureKept(const CollisionMesh& mesh) {
   place(edge_edge_measured_, &edge_edge_binned_, &edge_edge_bins_);
 }
 
+bool SpatialHash::Cull::beyondReach(double distance) {
+  if (exact_bound || !(distance - reach > below)) return false;
+  culled = std::min(culled, distance - reach);
+  return true;
+}
+
 bool SpatialHash::Cull::leftOut(double distance, double moved) {
-  // The bound beyond reach first (no displacement needed), then the pair's.
-  if (!exact_bound && distance - reach > below) {
-    culled = std::min(culled, distance - reach);
-    return true;
-  }
   const double bound = distance - factor * moved;
   if (!(bound > below)) return false;
   culled = std::min(culled, bound);
@@ -270,8 +275,8 @@ void SpatialHash::filterKept(const CollisionMesh& mesh, const VecX& x0, const Ve
   const int n = mesh.num_nodes;
   moved_.resize(n);
   double most_moved = 0.0;
+  padNodeBoxes(pad);
   for (int i = 0; i < n; ++i) {
-    node_box_[i] = Box{node_box_[i].lo.array() - pad, node_box_[i].hi.array() + pad};
     const auto ref = kept_reference_.segment<3>(3 * i);
     moved_[i] = std::sqrt(std::max((x0.segment<3>(3 * i) - ref).squaredNorm(),
                                    (x1.segment<3>(3 * i) - ref).squaredNorm()));
@@ -301,20 +306,28 @@ void SpatialHash::filterKept(const CollisionMesh& mesh, const VecX& x0, const Ve
   out->culled_bound = c.culled;
 }
 
+double SpatialHash::pointTriangleMoved(const CollisionMesh& mesh, int node, int tri) const {
+  const Eigen::Vector3i& t = mesh.triangles[tri];
+  return moved_[node] + std::max({moved_[t[0]], moved_[t[1]], moved_[t[2]]});
+}
+
+double SpatialHash::edgeEdgeMoved(const CollisionMesh& mesh, int a, int b) const {
+  const Eigen::Vector2i& ea = mesh.edges[a];
+  const Eigen::Vector2i& eb = mesh.edges[b];
+  return std::max(moved_[ea[0]], moved_[ea[1]]) + std::max(moved_[eb[0]], moved_[eb[1]]);
+}
+
 void SpatialHash::filterInOrder(const CollisionMesh& mesh, Cull* c, CandidatePairs* out) {
   mergeElementBoxes(mesh);
   for (const KeptPair& p : point_triangle_measured_) {
-    if (!node_box_[p.a].overlaps(tri_box_[p.b])) continue;
-    const Eigen::Vector3i& t = mesh.triangles[p.b];
-    const double moved = moved_[p.a] + std::max({moved_[t[0]], moved_[t[1]], moved_[t[2]]});
-    if (!c->leftOut(p.distance, moved)) out->point_triangle.emplace_back(p.a, p.b);
+    if (c->beyondReach(p.distance) || !node_box_[p.a].overlaps(tri_box_[p.b])) continue;
+    if (!c->leftOut(p.distance, pointTriangleMoved(mesh, p.a, p.b))) {
+      out->point_triangle.emplace_back(p.a, p.b);
+    }
   }
   for (const KeptPair& p : edge_edge_measured_) {
-    if (!edge_box_[p.a].overlaps(edge_box_[p.b])) continue;
-    const Eigen::Vector2i& ea = mesh.edges[p.a];
-    const Eigen::Vector2i& eb = mesh.edges[p.b];
-    const double moved = std::max(moved_[ea[0]], moved_[ea[1]]) + std::max(moved_[eb[0]], moved_[eb[1]]);
-    if (!c->leftOut(p.distance, moved)) out->edge_edge.emplace_back(p.a, p.b);
+    if (c->beyondReach(p.distance) || !edge_box_[p.a].overlaps(edge_box_[p.b])) continue;
+    if (!c->leftOut(p.distance, edgeEdgeMoved(mesh, p.a, p.b))) out->edge_edge.emplace_back(p.a, p.b);
   }
 }
 
@@ -370,27 +383,14 @@ void SpatialHash::filterByDistance(const CollisionMesh& mesh, Cull* c, Candidate
   };
   chosen_.clear();
   scan(point_triangle_binned_, point_triangle_bins_, [&](const KeptPair& p) {
-    if (!c->exact_bound && p.distance - c->reach > c->below) {
-      c->leftOut(p.distance, 0.0);  // beyond reach: no box needed
-      return;
-    }
-    if (!node_box_[p.a].overlaps(triBox(p.b))) return;
-    const Eigen::Vector3i& t = mesh.triangles[p.b];
-    const double moved = moved_[p.a] + std::max({moved_[t[0]], moved_[t[1]], moved_[t[2]]});
-    if (!c->leftOut(p.distance, moved)) chosen_.push_back(p.index);
+    if (c->beyondReach(p.distance) || !node_box_[p.a].overlaps(triBox(p.b))) return;
+    if (!c->leftOut(p.distance, pointTriangleMoved(mesh, p.a, p.b))) chosen_.push_back(p.index);
   });
   emit(kept_.point_triangle, &point_triangle_chosen_, &out->point_triangle);
   chosen_.clear();
   scan(edge_edge_binned_, edge_edge_bins_, [&](const KeptPair& p) {
-    if (!c->exact_bound && p.distance - c->reach > c->below) {
-      c->leftOut(p.distance, 0.0);
-      return;
-    }
-    if (!edgeBox(p.a).overlaps(edgeBox(p.b))) return;
-    const Eigen::Vector2i& ea = mesh.edges[p.a];
-    const Eigen::Vector2i& eb = mesh.edges[p.b];
-    const double moved = std::max(moved_[ea[0]], moved_[ea[1]]) + std::max(moved_[eb[0]], moved_[eb[1]]);
-    if (!c->leftOut(p.distance, moved)) chosen_.push_back(p.index);
+    if (c->beyondReach(p.distance) || !edgeBox(p.a).overlaps(edgeBox(p.b))) return;
+    if (!c->leftOut(p.distance, edgeEdgeMoved(mesh, p.a, p.b))) chosen_.push_back(p.index);
   });
   emit(kept_.edge_edge, &edge_edge_chosen_, &out->edge_edge);
 }
