@@ -192,6 +192,13 @@ constexpr int kAutoCholeskyNodes = 4096;
 /// (shear and bend too) stretch 1e5 dt 1/60: 179, 24 / 27; dt 1/250: 28,
 /// 3.9 / 7.5.
 int autoTrialIterations(const Model& model, Preconditioner cheap);
+/// How many V-cycle iterations a multigrid solve gets before it goes on with
+/// a Cholesky factor: 2 sqrt(n) for n nodes, about where the factor starts
+/// to cost less (autoTrialIterations). On a stiff cloth the V-cycle stalls
+/// while the factor solves at any stiffness: the 128 x 128 cloth (hard case
+/// 10) at stretch 1e7, dt 0.01, took 7049 V-cycles and 7 rejected sub-steps
+/// in one step (15.5 s) where a factor solves it in 2 iterations (0.41 s).
+int multigridStallIterations(const Model& model);
 
 /// `auto` across steps: the cheap guess (block Jacobi or multigrid,
 /// cheapPreconditioner) where it pays. A solve with it that runs past

@@ -64,6 +64,13 @@ class Stepper {
   static constexpr double kMassDominatedKappa = 1.0;
   static constexpr int kMassDominatedIterations = 60;
   static constexpr int kMassDominatedBackoff = 64;
+  /// `multigrid` (asked for, or `auto`'s choice) on a step where its V-cycle
+  /// stalls: a solve that has not converged after multigridStallIterations
+  /// goes on with a Cholesky factor from where it got to, and the next
+  /// kMultigridStallBackoff steps use the factor from the start (then the
+  /// V-cycle is tried again). Only the preconditioner changes: answers
+  /// within the tolerance, and no step rejected for a stalled solve.
+  static constexpr int kMultigridStallBackoff = 64;
 
   /// Advances x and v in place by h. Fills the solver parts of StepStats
   /// (iterations, residuals, timings, ok/failure); energy and strain are the
@@ -228,6 +235,7 @@ class Stepper {
   AutoPreconditioner auto_;  ///< `auto`'s choice across steps
   bool mass_dominated_ = false;  ///< this step
   int mass_dominated_backoff_ = 0;
+  int multigrid_stall_backoff_ = 0;  ///< steps left on the factor after a stall
   SelfRepulsion* repulsion_ = nullptr;  ///< setRepulsion's
   ConstraintFilter filter_;  ///< pins (eliminated) and contacts (projected)
   ContactSet contact_;

@@ -332,6 +332,10 @@ int autoTrialIterations(const Model& model, Preconditioner cheap) {
       strongerPreconditioner(model) != Preconditioner::Cholesky) {
     return kAutoJacobiIterations;
   }
+  return multigridStallIterations(model);
+}
+
+int multigridStallIterations(const Model& model) {
   return static_cast<int>(std::lround(2.0 * std::sqrt(static_cast<double>(model.numNodes()))));
 }
 

@@ -67,6 +67,21 @@ CgResult Stepper::solveLinear(const Model& model, const VecX& b, VecX& x, double
   }
   const bool trial = settings_.preconditioner == Preconditioner::Auto &&
                      preconditioner_ != strongerPreconditioner(model);
+  if (!trial && preconditioner_ == Preconditioner::Multigrid) {
+    const int cap = std::min(settings_.max_iterations, multigridStallIterations(model));
+    CgResult cg = conjugateGradient(A_, model.springs, filter_, b, x, preconditioner_, tolerance,
+                                    cap, cg_, split);
+    if (cg.converged || cap >= settings_.max_iterations) return cg;
+    // Stalled (a stiff cloth): the factor, on from where the V-cycle got to,
+    // and for this step's other solves and the next steps too.
+    preconditioner_ = Preconditioner::Cholesky;
+    multigrid_stall_backoff_ = kMultigridStallBackoff;
+    const int spent = cg.iterations;
+    cg = conjugateGradient(A_, model.springs, filter_, b, x, preconditioner_, tolerance,
+                           settings_.max_iterations, cg_, split);
+    cg.iterations += spent;
+    return cg;
+  }
   const int cap = trial ? std::min(settings_.max_iterations,
                                    autoTrialIterations(model, preconditioner_))
                         : settings_.max_iterations;
@@ -109,6 +124,10 @@ StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
   const auto start = Clock::now();
   setPins(model, pins);
   preconditioner_ = auto_.choose(settings_.preconditioner, model, h, !colliders.empty());
+  if (multigrid_stall_backoff_ > 0 && preconditioner_ == Preconditioner::Multigrid) {
+    --multigrid_stall_backoff_;
+    preconditioner_ = Preconditioner::Cholesky;  // the V-cycle stalled lately (solveLinear)
+  }
   // A factor where the matrix is all but its block diagonal (the masses)
   // costs more than it saves: block Jacobi first there (solveLinear).
   if (mass_dominated_backoff_ > 0) --mass_dominated_backoff_;
