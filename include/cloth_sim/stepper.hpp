@@ -69,8 +69,11 @@ class Stepper {
   /// goes on with a Cholesky factor from where it got to, and the next
   /// kMultigridStallBackoff steps use the factor from the start (then the
   /// V-cycle is tried again). Only the preconditioner changes: answers
-  /// within the tolerance, and no step rejected for a stalled solve.
+  /// within the tolerance, and no step rejected for a stalled solve. Up to
+  /// kMultigridFactorNodes nodes (256 x 256: a factor takes 2.4 s and 0.5 GB;
+  /// its fill grows as n^1.5): beyond, the V-cycle goes on.
   static constexpr int kMultigridStallBackoff = 64;
+  static constexpr int kMultigridFactorNodes = 256 * 256;
 
   /// Advances x and v in place by h. Fills the solver parts of StepStats
   /// (iterations, residuals, timings, ok/failure); energy and strain are the

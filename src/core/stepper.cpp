@@ -67,7 +67,8 @@ CgResult Stepper::solveLinear(const Model& model, const VecX& b, VecX& x, double
   }
   const bool trial = settings_.preconditioner == Preconditioner::Auto &&
                      preconditioner_ != strongerPreconditioner(model);
-  if (!trial && preconditioner_ == Preconditioner::Multigrid) {
+  if (!trial && preconditioner_ == Preconditioner::Multigrid &&
+      model.numNodes() <= kMultigridFactorNodes) {
     const int cap = std::min(settings_.max_iterations, multigridStallIterations(model));
     CgResult cg = conjugateGradient(A_, model.springs, filter_, b, x, preconditioner_, tolerance,
                                     cap, cg_, split);
