@@ -3,6 +3,7 @@
 // Runtime requests are validated first; a rejected request changes nothing.
 #pragma once
 
+#include <limits>
 #include <map>
 #include <memory>
 #include <string>
@@ -230,6 +231,8 @@ class Simulation {
   /// newton/bdf2 step whose Newton iteration does not converge is taken as a
   /// linearized backward-Euler step.
   StepStats stepWithRecovery(double h, int depth);
+  /// The step as two halves, each with recovery (from the checkpoint).
+  StepStats splitInHalves(double h, int depth);
   /// Energy scale for the blow-up test: kinetic + elastic + m|g| times size.
   double energyScale() const;
   void accumulate(const StepStats& part, StepStats* total) const;
@@ -273,6 +276,11 @@ class Simulation {
   bool energy_rejected_ = false;  ///< the last attempt failed on the energy check alone
   bool refining_ = false;     ///< the attempt refines a linearized step (stepWithRecovery)
   bool refine_next_ = false;  ///< the last refined step took > 1 Newton iteration
+  /// The last accepted (sub-)step's length, and the length above which a
+  /// (sub-)step is split at once, without an attempt (stepWithRecovery):
+  /// that length within a step, twice it at the next step's start.
+  double accepted_h_ = std::numeric_limits<double>::infinity();
+  double split_above_ = std::numeric_limits<double>::infinity();
   int refine_skip_ = 0;       ///< steps refined at once before the linearized one is tried again
   int refine_interval_ = 0;   ///< refine_skip_'s last value (doubles while the tries fail)
   Stepper stepper_;

@@ -135,6 +135,11 @@ StepStats Simulation::step(double h) {
   checkpoint_.saved = false;
   state_finite_ = false;  // an accepted attempt of this step sets it
   if (adaptive()) saveCheckpoint();
+  // A step starts split down to twice the last accepted sub-step: one level
+  // coarser a step (stepWithRecovery).
+  split_above_ = scene_.solver.method == Method::SymplecticEuler
+                     ? std::numeric_limits<double>::infinity()
+                     : 2.0 * accepted_h_;
   StepStats stats = stepWithRecovery(h, 0);
   if (!stats.ok && scene_.solver.recovery && checkpoint_.saved) restoreCheckpoint();
   if (stats.ok) ++step_count_;
@@ -390,6 +395,10 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
   }
   h_prev_ = h;
   has_prev_ = true;
+  accepted_h_ = h;
+  // The rest of this step goes in sub-steps no longer than this one
+  // (stepWithRecovery).
+  if (scene_.solver.method != Method::SymplecticEuler) split_above_ = h;
   t_ += h;
   for (size_t k = 0; k < pin_ends_.nodes.size(); ++k) {
     PinTarget& pin = pins_[pin_ends_.nodes[k]];
