@@ -281,6 +281,8 @@ class Simulation {
   /// that length within a step, twice it at the next step's start.
   double accepted_h_ = std::numeric_limits<double>::infinity();
   double split_above_ = std::numeric_limits<double>::infinity();
+  bool hold_sizes_ = true;   ///< off while a step is retried with every size tried
+  bool sizes_held_ = false;  ///< this step split at once somewhere
   int refine_skip_ = 0;       ///< steps refined at once before the linearized one is tried again
   int refine_interval_ = 0;   ///< refine_skip_'s last value (doubles while the tries fail)
   Stepper stepper_;

@@ -141,7 +141,10 @@ StepStats Simulation::stepWithRecovery(double h, int depth) {
   // same time, 0.56 s against 0.52). Not for symplectic_euler, whose
   // energy check only catches a blow-up: held at a size once accepted, hard
   // case 02 grew unstable where trying the whole step each time passes.
-  if (can_split && h > split_above_) return splitInHalves(h, depth);
+  if (can_split && h > split_above_) {
+    sizes_held_ = true;
+    return splitInHalves(h, depth);
+  }
   // At the deepest halving Newton must still converge: where it cannot (a
   // singular start, e.g. zero-length springs, makes the implicit equation
   // scale-free, so halving does not help) the sub-step is taken as one
