@@ -226,6 +226,12 @@ class Stepper {
   /// b and x split by component (conjugateGradient).
   CgResult solveLinear(const Model& model, const VecX& b, VecX& x, double tolerance = 0.0,
                        bool split = false);
+  /// solveLinear's two-stage solves: `first` for up to `cap` iterations; if
+  /// that leaves CG short, `*went_on` is set and CG goes on from x with the
+  /// preconditioner `then()` gives and the whole budget (iterations summed).
+  template <class Then>
+  CgResult solveThenGoOn(const Model& model, const VecX& b, VecX& x, double tolerance,
+                         bool split, Preconditioner first, int cap, Then then, bool* went_on);
   /// g = M (v1 - av) - beta h f(ax + beta h v1, v1) on free nodes; returns ||g||.
   double residual(const Model& model, double bh, const VecX& ax, const VecX& av,
                   const VecX& v1, VecX& x1, VecX& g);
