@@ -135,28 +135,7 @@ StepStats Simulation::step(double h) {
   checkpoint_.saved = false;
   state_finite_ = false;  // an accepted attempt of this step sets it
   if (adaptive()) saveCheckpoint();
-  // A step starts split down to twice the last accepted sub-step: one level
-  // coarser a step (stepWithRecovery).
-  split_above_ = scene_.solver.method == Method::SymplecticEuler
-                     ? std::numeric_limits<double>::infinity()
-                     : 2.0 * accepted_h_;
-  sizes_held_ = false;
-  StepStats stats = stepWithRecovery(h, 0);
-  if (!stats.ok && scene_.solver.recovery && checkpoint_.saved && sizes_held_) {
-    // The sizes held from earlier sub-steps did not do (a 5 m/s grab after
-    // sub-steps of dt/128: the fling, s3, at dt 0.1 under newton, failed on
-    // energy where trying each half whole passed): the step again from its
-    // start, every size tried as before. Its rolled-back sub-steps count as
-    // rejected attempts.
-    restoreCheckpoint();
-    hold_sizes_ = false;
-    split_above_ = std::numeric_limits<double>::infinity();
-    StepStats again = stepWithRecovery(h, 0);
-    hold_sizes_ = true;
-    again.addWork(stats);
-    again.rejected += stats.rejected + stats.substeps;
-    stats = again;
-  }
+  StepStats stats = stepHoldingSizes(h);
   if (!stats.ok && scene_.solver.recovery && checkpoint_.saved) restoreCheckpoint();
   if (stats.ok) ++step_count_;
   stats.h_max = h;
