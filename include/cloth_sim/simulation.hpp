@@ -230,10 +230,10 @@ class Simulation {
   /// on rejection two half steps, down to max_halvings deep; there, a
   /// newton/bdf2 step whose Newton iteration does not converge is taken as a
   /// linearized backward-Euler step.
+  StepStats stepWithRecovery(double h, int depth);
   /// A whole step: stepWithRecovery with the sub-step sizes held, and where
   /// that fails, again from the step's start with every size tried.
   StepStats stepHoldingSizes(double h);
-  StepStats stepWithRecovery(double h, int depth);
   /// The step as two halves, each with recovery (from the checkpoint).
   StepStats splitInHalves(double h, int depth);
   /// Energy scale for the blow-up test: kinetic + elastic + m|g| times size.
