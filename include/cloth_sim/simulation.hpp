@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "cloth_sim/energy_window.hpp"
 #include "cloth_sim/collider.hpp"
 #include "cloth_sim/forces.hpp"
 #include "cloth_sim/model.hpp"
@@ -313,6 +314,7 @@ class Simulation {
   static constexpr double kSelfProximity = 0.5;
   static constexpr double kRepulsionStiffness = 16.0;
   EnergyParts measures_; ///< of the current state (energy check, stats)
+  EnergyWindow energy_window_;  ///< bdf2's balance while pins or colliders move
   bool state_finite_ = false;  ///< an accepted attempt of this step left x_, v_ finite
   VecX x_save_, v_save_, force_;
   VecX x_predicted_;  ///< x0 + h v0: where the repulsion looks for pairs coming close

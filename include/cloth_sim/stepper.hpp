@@ -51,17 +51,23 @@ class Stepper {
   /// Cholesky factorizations made so far (cost accounting).
   int factorizations() const { return cg_.factorizations; }
   /// `cholesky` on a step whose kappa (autoStiffness) is at most
-  /// kMassDominatedKappa: the matrix is its block diagonal (the masses) but
-  /// for a few per cent, block-Jacobi CG converges in a few iterations, and
-  /// a factor costs more than it saves. Its solves run block Jacobi for up to
+  /// kMassDominatedKappa: the matrix is near its block diagonal (the
+  /// masses), block-Jacobi CG converges in a few tens of iterations, and a
+  /// factor costs more than it saves. Its solves run block Jacobi for up to
   /// kMassDominatedIterations, then go on with the factor, which then serves
   /// the next kMassDominatedBackoff steps. Only the preconditioner changes
   /// (not Newton's forcing or warm starts): answers within the tolerance.
   /// Measured at dt 1e-4 (kappa 0.06-0.3, ms a step, factor / block Jacobi
   /// first): the twist (s4) 0.255 / 0.143, the fling (s3) 0.328 / 0.201,
   /// the stiffened cloth on a table (c4) 0.80 / 0.29, the heap (s1) 1.11 /
-  /// 0.70 (its self-repulsion: 41 CG iterations a step where 11).
-  static constexpr double kMassDominatedKappa = 1.0;
+  /// 0.70 (its self-repulsion: 41 CG iterations a step where 11). Up to 10
+  /// it still pays (session 53, stretch 1e5 at dt 1e-4, kappa 2.8, us a step,
+  /// implicit_euler / newton / bdf2, factor against block Jacobi first): the
+  /// twist 245 / 156, 472 / 455, 603 / 386; the fling 343 / 232, 649 / 387;
+  /// c4 866 / 309, 720 / 505, 733 / 464; the heap 933 / 599, but under
+  /// newton 1686 / 2127 (its repulsion again). At kappa 26 (stretch 1e6) the
+  /// factor wins on the twist and the heap.
+  static constexpr double kMassDominatedKappa = 10.0;
   static constexpr int kMassDominatedIterations = 60;
   static constexpr int kMassDominatedBackoff = 64;
   /// `multigrid` (asked for, or `auto`'s choice) on a step where its V-cycle

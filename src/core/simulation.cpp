@@ -365,7 +365,14 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
     // is then at the step's round-off (stretch 1e8: ~1e-17 J, rising and
     // falling by as much): gains below that are not gains.
     stats.energy_round_off = energyRoundOff(model_, h, before.round_off);  // of v_save_
-    if (scene_.solver.recovery && !(gain <= allowance * scale + stats.energy_round_off)) {
+    // With pins or colliders that move, a bdf2 step may gain what the
+    // balance lies below its recent maximum (EnergyWindow): the work is
+    // then a one-point quadrature, and a step held to it alone is retried as
+    // backward Euler over and over (energy_window.hpp).
+    const double credit = (pins_move || colliders_move) && taken == Method::Bdf2
+                              ? energy_window_.credit()
+                              : 0.0;
+    if (scene_.solver.recovery && !(gain <= allowance * scale + stats.energy_round_off + credit)) {
       stats.ok = false;
       stats.failure = "energy jump of " + fmt(gain) + " J beyond the work input";
       energy_rejected_ = true;
@@ -375,6 +382,12 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
     x_ = x_save_;
     v_ = v_save_;
     return stats;
+  }
+  if (pins_move || colliders_move) {
+    energy_window_.accept(after.total() - before_total - work -
+                          (colliders_move ? std::max(stats.contact_work, 0.0) : 0.0));
+  } else {
+    energy_window_.clear();  // steps without inputs are held to the step's own bound
   }
   measures_ = after;
   state_finite_ = after.finite;
@@ -387,6 +400,7 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
     measures_.kinetic = cloth_sim::kineticEnergy(model_, v_);
     measures_.round_off = roundOffTerms(model_, v_);
     state_finite_ = false;  // v changed since measured
+    energy_window_.clear();
   }
   h_prev_ = h;
   has_prev_ = true;

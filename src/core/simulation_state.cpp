@@ -7,6 +7,7 @@ namespace cloth_sim {
 void Simulation::measureState() {
   measures_ = measureEnergy(model_, x_, v_);
   measures_.repulsion = repulsionEnergy(x_);
+  energy_window_.clear();  // a new state: no balance carried over
 }
 
 Status Simulation::setState(const VecX& x, const VecX& v) {

@@ -76,8 +76,9 @@ StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
     --multigrid_stall_backoff_;
     preconditioner_ = Preconditioner::Cholesky;  // the V-cycle stalled lately (solveLinear)
   }
-  // A factor where the matrix is all but its block diagonal (the masses)
-  // costs more than it saves: block Jacobi first there (solveLinear).
+  // A factor where the matrix is near its block diagonal (the masses; kappa
+  // <= kMassDominatedKappa) costs more than it saves: block Jacobi first
+  // there (solveLinear).
   if (mass_dominated_backoff_ > 0) --mass_dominated_backoff_;
   mass_dominated_ = preconditioner_ == Preconditioner::Cholesky && mass_dominated_backoff_ == 0 &&
                     autoStiffness(model, h) <= kMassDominatedKappa;
