@@ -120,6 +120,7 @@ class SpatialHash {
   std::vector<Box> node_box_, tri_box_, edge_box_;
   Table tri_table_, edge_table_;
   std::vector<unsigned> bucket_scratch_;
+  std::vector<int> stamp_;  ///< per element: the query element that last found it (hashPairs)
   double margin_ = 0.0;
   /// Kept boxes reach this many more moves on along each node's motion.
   static constexpr double kAhead = 2.0;

@@ -173,38 +173,47 @@ void SpatialHash::hashPairs(const CollisionMesh& mesh, double pad) {
   // fast element's box is capped at 8 cells a side by growing the cell.
   cell_ = std::max({extent / mesh.triangles.size(), largest / 8.0, 1e-9});
 
+  // A pair shares several cells (and hashed buckets): each query element
+  // takes a pair once (a stamp on the element found), then sorts its own
+  // few. The lists come out sorted and unique, as one sort of every pair
+  // with its repeats made them, at a fraction of the cost where boxes cover
+  // many cells (the heap at dt 0.1: 40 % of a step sorted repeats).
   buildTable(tri_box_, &tri_table_);
+  stamp_.assign(mesh.triangles.size(), -1);
   for (int i = 0; i < n; ++i) {
     const Box& box = node_box_[i];
+    const size_t first = kept_.point_triangle.size();
     forCells(box, [&](long ix, long iy, long iz) {
       const unsigned bucket = cellHash(ix, iy, iz) & tri_table_.mask;
       for (int k = tri_table_.start[bucket]; k < tri_table_.start[bucket + 1]; ++k) {
         const int tri = tri_table_.ids[k];
+        if (stamp_[tri] == i) continue;
+        stamp_[tri] = i;
         const Eigen::Vector3i& t = mesh.triangles[tri];
         if (t[0] == i || t[1] == i || t[2] == i || !box.overlaps(tri_box_[tri])) continue;
         kept_.point_triangle.emplace_back(i, tri);
       }
     });
+    std::sort(kept_.point_triangle.begin() + first, kept_.point_triangle.end());
   }
   buildTable(edge_box_, &edge_table_);
+  stamp_.assign(mesh.edges.size(), -1);
   for (size_t a = 0; a < mesh.edges.size(); ++a) {
     const Box& box = edge_box_[a];
     const int a0 = mesh.edges[a][0], a1 = mesh.edges[a][1];
+    const size_t first = kept_.edge_edge.size();
     forCells(box, [&](long ix, long iy, long iz) {
       const unsigned bucket = cellHash(ix, iy, iz) & edge_table_.mask;
       for (int k = edge_table_.start[bucket]; k < edge_table_.start[bucket + 1]; ++k) {
         const int b = edge_table_.ids[k];
-        if (b <= static_cast<int>(a)) continue;
+        if (b <= static_cast<int>(a) || stamp_[b] == static_cast<int>(a)) continue;
+        stamp_[b] = static_cast<int>(a);
         const int b0 = mesh.edges[b][0], b1 = mesh.edges[b][1];
         if (b0 == a0 || b0 == a1 || b1 == a0 || b1 == a1 || !box.overlaps(edge_box_[b])) continue;
         kept_.edge_edge.emplace_back(static_cast<int>(a), b);
       }
     });
-  }
-  // A pair shares several cells (and hashed buckets): keep it once.
-  for (auto* pairs : {&kept_.point_triangle, &kept_.edge_edge}) {
-    std::sort(pairs->begin(), pairs->end());
-    pairs->erase(std::unique(pairs->begin(), pairs->end()), pairs->end());
+    std::sort(kept_.edge_edge.begin() + first, kept_.edge_edge.end());
   }
 }
 
