@@ -42,6 +42,13 @@ class SystemMatrix {
   /// Sets the node blocks to mass_i * I (+ extra_diagonal * I). Couplings are
   /// then set by setCoupling for every spring.
   void reset(const std::vector<double>& mass, double extra_diagonal = 0.0);
+  /// Drops the node blocks and pair terms (addNodeBlock, addPairTerm) and
+  /// keeps the springs' terms: the matrix as its assembly left it.
+  void clearExtras() {
+    node_blocks_.clear();
+    pair_terms_.clear();
+    changed();
+  }
   /// Sets spring k's block S = iso I + axis u u^T (u unit).
   void setCoupling(int spring, double iso, double axis, const Vec3& u) {
     const SpringSlot& s = layout_->slot[spring];

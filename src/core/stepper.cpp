@@ -1,6 +1,7 @@
 #include "cloth_sim/stepper.hpp"
 
 #include <chrono>
+#include <cstring>
 #include <limits>
 #include <cmath>
 #include <algorithm>
@@ -46,6 +47,28 @@ void Stepper::assemble(const Model& model, const VecX& x, const VecX& v, double 
   if (repulsion_) repulsion_->addToSystem(x, v, a, b, linearized, A_, f_, w, dfdx_w);
 }
 
+void Stepper::assembleLinearized(const Model& model, const VecX& x, const VecX& v, double h) {
+  StartAssembly& kept = start_assembly_;
+  const auto same = [](const VecX& a, const VecX& b) {
+    return a.size() == b.size() &&
+           std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<size_t>(a.size())) == 0;
+  };
+  if (contact_on_ && kept.valid && kept.h == h && same(kept.x, x) && same(kept.v, v)) {
+    A_.clearExtras();  // the last pass's friction blocks and repulsion terms
+    f_ = kept.f;
+    dfdx_v_ = kept.dfdx_v;
+    A_.setPsdCouplingBound(INFINITY);
+  } else {
+    assembleSystem(model, x, v, h, h * h, settings_.project_compression && !exact_hessian_, A_,
+                   f_, &v, &dfdx_v_, nullptr, false, settings_.threads);
+    if (contact_on_) {  // later contact passes start here again (contactPasses)
+      A_.setPsdCouplingBound(INFINITY);  // as assemble: no float products with contact
+      kept = StartAssembly{true, h, x, v, f_, dfdx_v_};
+    }
+  }
+  if (repulsion_) repulsion_->addToSystem(x, v, h, h * h, true, A_, f_, &v, &dfdx_v_);
+}
+
 void Stepper::setPins(const Model& model, const PinnedEnds& pins) {
   filter_.reset(model.numNodes());
   for (size_t k = 0; k < pins.nodes.size(); ++k) {
@@ -70,6 +93,7 @@ StepStats Stepper::step(const Model& model, double h, const PinnedEnds& pins,
                         const History& history, VecX& x, VecX& v, std::optional<Method> as,
                         const CollidersOverStep& colliders) {
   const auto start = Clock::now();
+  start_assembly_.valid = false;  // the model may have changed since the last step
   setPins(model, pins);
   preconditioner_ = auto_.choose(settings_.preconditioner, model, h, !colliders.empty());
   if (multigrid_stall_backoff_ > 0 && preconditioner_ == Preconditioner::Multigrid) {

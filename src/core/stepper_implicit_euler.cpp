@@ -100,7 +100,7 @@ StepStats Stepper::implicitEuler(const Model& model, double h, VecX& x, VecX& v)
   StepStats stats;
   const int n = model.numNodes();
   auto t0 = Clock::now();
-  assemble(model, x, v, h, h * h, &v, &dfdx_v_, nullptr, true);
+  assembleLinearized(model, x, v, h);
   rhs_ = h * (f_ + h * dfdx_v_);
   // Pinned velocity changes are prescribed: move their columns to the right side.
   // Nonzero only where the last step prescribed a change (pins_move).
