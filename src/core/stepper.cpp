@@ -1,7 +1,6 @@
 #include "cloth_sim/stepper.hpp"
 
 #include <chrono>
-#include <cstring>
 #include <limits>
 #include <cmath>
 #include <algorithm>
@@ -45,28 +44,6 @@ void Stepper::assemble(const Model& model, const VecX& x, const VecX& v, double 
   // energy after 8 halvings, as holding bdf2's damping axes did (session 36).
   if (contact_on_) A_.setPsdCouplingBound(INFINITY);
   if (repulsion_) repulsion_->addToSystem(x, v, a, b, linearized, A_, f_, w, dfdx_w);
-}
-
-void Stepper::assembleLinearized(const Model& model, const VecX& x, const VecX& v, double h) {
-  StartAssembly& kept = start_assembly_;
-  const auto same = [](const VecX& a, const VecX& b) {
-    return a.size() == b.size() &&
-           std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<size_t>(a.size())) == 0;
-  };
-  if (contact_on_ && kept.valid && kept.h == h && same(kept.x, x) && same(kept.v, v)) {
-    A_.clearExtras();  // the last pass's friction blocks and repulsion terms
-    f_ = kept.f;
-    dfdx_v_ = kept.dfdx_v;
-    A_.setPsdCouplingBound(INFINITY);
-  } else {
-    assembleSystem(model, x, v, h, h * h, settings_.project_compression && !exact_hessian_, A_,
-                   f_, &v, &dfdx_v_, nullptr, false, settings_.threads);
-    if (contact_on_) {  // later contact passes start here again (contactPasses)
-      A_.setPsdCouplingBound(INFINITY);  // as assemble: no float products with contact
-      kept = StartAssembly{true, h, x, v, f_, dfdx_v_};
-    }
-  }
-  if (repulsion_) repulsion_->addToSystem(x, v, h, h * h, true, A_, f_, &v, &dfdx_v_);
 }
 
 void Stepper::setPins(const Model& model, const PinnedEnds& pins) {

@@ -4,6 +4,7 @@
 // moving or projecting anything) kept split by component from the assembly
 // to the update, CG's own layout.
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 #include "cloth_sim/forces.hpp"
@@ -58,6 +59,28 @@ bool Stepper::splitStepApplies(double h, const VecX& x, const VecX& v) const {
     if (pins_->targets[k] != at || pinChange(k, x, v, h).squaredNorm() > 0.0) return false;
   }
   return true;
+}
+
+void Stepper::assembleLinearized(const Model& model, const VecX& x, const VecX& v, double h) {
+  StartAssembly& kept = start_assembly_;
+  const auto same = [](const VecX& a, const VecX& b) {
+    return a.size() == b.size() &&
+           std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<size_t>(a.size())) == 0;
+  };
+  if (contact_on_ && kept.valid && kept.h == h && same(kept.x, x) && same(kept.v, v)) {
+    A_.clearExtras();  // the last pass's friction blocks and repulsion terms
+    f_ = kept.f;
+    dfdx_v_ = kept.dfdx_v;
+    A_.setPsdCouplingBound(INFINITY);
+  } else {
+    assembleSystem(model, x, v, h, h * h, settings_.project_compression && !exact_hessian_, A_,
+                   f_, &v, &dfdx_v_, nullptr, false, settings_.threads);
+    if (contact_on_) {  // later contact passes start here again (contactPasses)
+      A_.setPsdCouplingBound(INFINITY);  // as assemble: no float products with contact
+      kept = StartAssembly{true, h, x, v, f_, dfdx_v_};
+    }
+  }
+  if (repulsion_) repulsion_->addToSystem(x, v, h, h * h, true, A_, f_, &v, &dfdx_v_);
 }
 
 StepStats Stepper::implicitEulerSplit(const Model& model, double h, VecX& x, VecX& v) {
