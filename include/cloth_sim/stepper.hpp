@@ -226,6 +226,9 @@ class Stepper {
   void assemble(const Model& model, const VecX& x, const VecX& v, double a, double b,
                 const VecX* w, VecX* dfdx_w, const std::vector<Vec3>* damping_axes,
                 bool linearized);
+  /// assemble without the repulsion's terms: the springs' (assembleSystem).
+  void assembleSprings(const Model& model, const VecX& x, const VecX& v, double a, double b,
+                       const VecX* w, VecX* dfdx_w, const std::vector<Vec3>* damping_axes);
   /// implicitEuler's assemble, or, at a later contact pass of the same step
   /// (the same x0, v0, h), the springs' terms it kept and the repulsion's
   /// afresh: the springs' part is the same numbers, half a pass's time on a

@@ -271,6 +271,7 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
     stats.failure = newtonFailure(stats);
   }
   EnergyParts after;
+  double gain = 0.0;  // beyond the work put in (the energy check, the bdf2 window)
   if (stats.ok) {
     after = measureEnergy(model_, x_, v_);
     // Moving colliders do work on the cloth too; static ones only take
@@ -282,15 +283,16 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
     // step by step, and its trapezoidal start not at all; the G-norm's
     // nonlinear analogue 1/2 [E(z1) + E(2 z1 - z0)] was tried and rejected
     // more steps than the plain energy (extrapolating a turning stiff spring
-    // stretches it). So bdf2 is held to the same per-step bound; a step that
-    // fails it is retried as backward Euler (stepWithRecovery).
+    // stretches it). So bdf2 is held to the same per-step bound (over a
+    // window while inputs move, below); a step that fails it is retried as
+    // backward Euler (stepWithRecovery).
     // The pins' work counts with its sign: where the cloth pushes the pins
     // back (a drag starting from rest, the stiff springs rebounding) its
     // energy must fall by as much. Counted as zero, that let a gain through
     // (the fling at stretch 1e6, dt 0.01: 4 sub-steps read -4.2e-3 J and the
     // energy rose by 1.8e-2 J, the stability map's integrated check failed).
     after.repulsion = repulsionEnergy(x_);
-    const double gain = after.total() - before_total - work - contact_work;
+    gain = after.total() - before_total - work - contact_work;
     // Symplectic Euler's energy oscillates by design: for it the check only
     // catches a blow-up.
     // A step Newton solved to its tolerance has no inexact solve to forgive,
@@ -330,8 +332,7 @@ StepStats Simulation::attempt(double h, bool reject_linear, bool reject_newton,
     return stats;
   }
   if (pins_move || colliders_move) {
-    energy_window_.accept(after.total() - before_total - work -
-                          (colliders_move ? std::max(stats.contact_work, 0.0) : 0.0));
+    energy_window_.accept(gain);
   } else {
     energy_window_.clear();  // steps without inputs are held to the step's own bound
   }

@@ -35,6 +35,13 @@ void Stepper::forces(const Model& model, const VecX& x, const VecX& v, VecX& f,
 void Stepper::assemble(const Model& model, const VecX& x, const VecX& v, double a, double b,
                        const VecX* w, VecX* dfdx_w, const std::vector<Vec3>* damping_axes,
                        bool linearized) {
+  assembleSprings(model, x, v, a, b, w, dfdx_w, damping_axes);
+  if (repulsion_) repulsion_->addToSystem(x, v, a, b, linearized, A_, f_, w, dfdx_w);
+}
+
+void Stepper::assembleSprings(const Model& model, const VecX& x, const VecX& v, double a,
+                              double b, const VecX* w, VecX* dfdx_w,
+                              const std::vector<Vec3>* damping_axes) {
   assembleSystem(model, x, v, a, b, settings_.project_compression && !exact_hessian_, A_, f_, w,
                  dfdx_w, damping_axes, false, settings_.threads);
   // CG's relaxed float products (linear_solver.cpp) only without contact:
@@ -43,7 +50,6 @@ void Stepper::assemble(const Model& model, const VecX& x, const VecX& v, double 
   // stretch 1e4, dt 0.1, bdf2) from 22 rejected sub-steps to a failure on
   // energy after 8 halvings, as holding bdf2's damping axes did (session 36).
   if (contact_on_) A_.setPsdCouplingBound(INFINITY);
-  if (repulsion_) repulsion_->addToSystem(x, v, a, b, linearized, A_, f_, w, dfdx_w);
 }
 
 void Stepper::setPins(const Model& model, const PinnedEnds& pins) {

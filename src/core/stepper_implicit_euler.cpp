@@ -71,14 +71,10 @@ void Stepper::assembleLinearized(const Model& model, const VecX& x, const VecX& 
     A_.clearExtras();  // the last pass's friction blocks and repulsion terms
     f_ = kept.f;
     dfdx_v_ = kept.dfdx_v;
-    A_.setPsdCouplingBound(INFINITY);
   } else {
-    assembleSystem(model, x, v, h, h * h, settings_.project_compression && !exact_hessian_, A_,
-                   f_, &v, &dfdx_v_, nullptr, false, settings_.threads);
-    if (contact_on_) {  // later contact passes start here again (contactPasses)
-      A_.setPsdCouplingBound(INFINITY);  // as assemble: no float products with contact
-      kept = StartAssembly{true, h, x, v, f_, dfdx_v_};
-    }
+    assembleSprings(model, x, v, h, h * h, &v, &dfdx_v_, nullptr);
+    // Later contact passes start here again (contactPasses).
+    if (contact_on_) kept = StartAssembly{true, h, x, v, f_, dfdx_v_};
   }
   if (repulsion_) repulsion_->addToSystem(x, v, h, h * h, true, A_, f_, &v, &dfdx_v_);
 }
